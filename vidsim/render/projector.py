@@ -1,0 +1,313 @@
+"""Structured light: a projector casting horizontal stripes, and the shading it produces.
+
+The cloth metric of the seed (horizontal stripes projected onto the fabric, angle maps of
+the striped image) needs the same stripe image from footage and from simulation. The
+shading is computed here once, for both renderers:
+
+* :func:`shade_stripes` takes a camera depth map (from :mod:`vidsim.render.raster` or from
+  :class:`vidsim.render.scene.Renderer`), normals, and a depth map rendered from the
+  projector (shadow map), and returns the light reaching each camera pixel;
+* :func:`render_stripes` / :func:`render_stripes_batch` do the whole fast path (two
+  rasterisations + shading) for a mesh.
+
+Physics of one camera pixel with surface point ``X`` (world, metres), unit normal ``n``
+oriented towards the camera, projector centre ``C``, ``d = |C - X|``, ``l = (C - X) / d``::
+
+    I = ambient + power * s(v_p) * max(0, n . l) / d**2 * lit(X)
+
+where ``v_p`` is the projector image row of ``X`` (continuous pixel coordinate, OpenCV
+convention), ``s`` the stripe profile (1 on the bright part of each period, 0 otherwise)
+and ``lit`` is 0 when the projector's depth map shows something nearer than ``X`` (beyond a
+bias) or when ``X`` falls outside the projector image. ``I`` is a linear radiometric quantity
+(no gamma, no noise, no blur; sensor effects belong to the reality code). Background pixels
+(``depth = inf``) get 0. With ``power`` in units of "intensity at 1 m", a surface facing a
+projector 1 m away on a bright stripe gets ``ambient + power``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numba import njit
+
+from vidsim.render.raster import DEFAULT_NEAR, RasterError, _check_cam, _check_mesh, _run, face_normals
+from vidsim.video.camera import PinholeCamera
+
+__all__ = ["ProjectorError", "Projector", "shade_stripes", "render_stripes", "render_stripes_batch", "camera_rays"]
+
+
+class ProjectorError(ValueError):
+    """A projector description or a shading input is not valid."""
+
+
+@dataclass
+class Projector:
+    """A projector casting horizontal stripes (constant along projector image x).
+
+    Attributes:
+        cam: the projector as an inverse camera (intrinsics, pose, resolution, distortion).
+        period_px: stripe period along the projector image y axis, projector pixels (> 1).
+        phase: shift of the pattern, radians (2 pi = one period); the bright part of period k
+            starts at projector row ``v = (k + phase / (2 pi)) * period_px``.
+        duty: fraction of each period that is bright, in (0, 1).
+        power: irradiance on a surface facing the projector 1 m away on a bright stripe
+            (arbitrary linear units; images usually use 0..1).
+        ambient: irradiance added everywhere on the surface (same units).
+        shadow_bias: depth tolerance of the shadow test, metres (a slope term is added).
+    """
+
+    cam: PinholeCamera
+    period_px: float = 16.0
+    phase: float = 0.0
+    duty: float = 0.5
+    power: float = 1.0
+    ambient: float = 0.1
+    shadow_bias: float = 0.003
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.cam, PinholeCamera):
+            raise ProjectorError(f"projector field 'cam' must be a PinholeCamera, got {type(self.cam).__name__}")
+        checks = {
+            "period_px": (self.period_px, lambda x: x > 1.0, "> 1 projector pixel"),
+            "phase": (self.phase, lambda x: True, "a finite angle in radians"),
+            "duty": (self.duty, lambda x: 0.0 < x < 1.0, "in (0, 1)"),
+            "power": (self.power, lambda x: x >= 0.0, ">= 0"),
+            "ambient": (self.ambient, lambda x: x >= 0.0, ">= 0"),
+            "shadow_bias": (self.shadow_bias, lambda x: x >= 0.0, ">= 0 metres"),
+        }
+        for name, (val, ok, what) in checks.items():
+            try:
+                v = float(val)
+            except (TypeError, ValueError) as e:
+                raise ProjectorError(f"projector field '{name}' must be a number, got {val!r}") from e
+            if not np.isfinite(v) or not ok(v):
+                raise ProjectorError(f"projector field '{name}' must be {what}, got {v}")
+            setattr(self, name, v)
+
+    def stripe(self, v: np.ndarray) -> np.ndarray:
+        """Stripe profile at projector rows ``v`` (pixels, any shape): 1.0 bright, 0.0 dark."""
+        s = np.mod(np.asarray(v, float) / self.period_px - self.phase / (2 * np.pi), 1.0)
+        return (s < self.duty).astype(float)
+
+    def pattern(self) -> np.ndarray:
+        """(Hp, Wp) float image of the projected pattern sampled at projector pixel centres."""
+        v = np.arange(self.cam.height, dtype=float)
+        return np.repeat(self.stripe(v)[:, None], self.cam.width, axis=1)
+
+
+# --------------------------------------------------------------------------- geometry helpers
+def camera_rays(cam: PinholeCamera) -> np.ndarray:
+    """(H, W, 2) normalised camera coordinates ``(x/z, y/z)`` of every pixel centre.
+
+    Undistorts with ``cam.dist`` (OpenCV iterative inverse) when the lens is not ideal, so that
+    ``X_cam = (x, y, 1) * depth`` back-projects a depth map made with that lens.
+    """
+    u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64))
+    if np.any(cam.dist):
+        pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
+        und = cv2.undistortPointsIter(pts, cam.K, cam.dist, None, None,
+                                      (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10))
+        return und.reshape(cam.height, cam.width, 2).astype(np.float64)
+    Kinv = np.linalg.inv(cam.K)
+    x = Kinv[0, 0] * u + Kinv[0, 1] * v + Kinv[0, 2]
+    y = Kinv[1, 1] * v + Kinv[1, 2]
+    return np.stack([x, y], axis=-1)
+
+
+@njit(cache=True)
+def _shade(depth, rays, idx, nrm, Rc, tc, Kp, Rp, tp, distp, use_dist, Hp, Wp, depth_proj, has_shadow,
+           period, phase_frac, duty, power, ambient, bias, out):
+    H, W = depth.shape
+    Cc = np.empty(3)
+    Cp = np.empty(3)
+    for r in range(3):  # centres = -R^T t
+        Cc[r] = -(Rc[0, r] * tc[0] + Rc[1, r] * tc[1] + Rc[2, r] * tc[2])
+        Cp[r] = -(Rp[0, r] * tp[0] + Rp[1, r] * tp[1] + Rp[2, r] * tp[2])
+    fp = Kp[1, 1]
+    for i in range(H):
+        for j in range(W):
+            z = depth[i, j]
+            k = idx[i, j]
+            if not (z < np.inf) or k < 0:
+                out[i, j] = 0.0
+                continue
+            xc = rays[i, j, 0] * z - tc[0]
+            yc = rays[i, j, 1] * z - tc[1]
+            zc = z - tc[2]
+            # world point X = R^T (x_cam - t)
+            X0 = Rc[0, 0] * xc + Rc[1, 0] * yc + Rc[2, 0] * zc
+            X1 = Rc[0, 1] * xc + Rc[1, 1] * yc + Rc[2, 1] * zc
+            X2 = Rc[0, 2] * xc + Rc[1, 2] * yc + Rc[2, 2] * zc
+            n0, n1, n2 = nrm[k, 0], nrm[k, 1], nrm[k, 2]
+            nn = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            val = ambient
+            if nn > 0:
+                n0 /= nn
+                n1 /= nn
+                n2 /= nn
+                # orient towards the camera (two-sided opaque surface)
+                if n0 * (Cc[0] - X0) + n1 * (Cc[1] - X1) + n2 * (Cc[2] - X2) < 0:
+                    n0, n1, n2 = -n0, -n1, -n2
+                l0, l1, l2 = Cp[0] - X0, Cp[1] - X1, Cp[2] - X2
+                d2 = l0 * l0 + l1 * l1 + l2 * l2
+                d = np.sqrt(d2)
+                cosv = (n0 * l0 + n1 * l1 + n2 * l2) / d
+                if cosv > 0:
+                    px = Rp[0, 0] * X0 + Rp[0, 1] * X1 + Rp[0, 2] * X2 + tp[0]
+                    py = Rp[1, 0] * X0 + Rp[1, 1] * X1 + Rp[1, 2] * X2 + tp[1]
+                    pz = Rp[2, 0] * X0 + Rp[2, 1] * X1 + Rp[2, 2] * X2 + tp[2]
+                    if pz > 0:
+                        xn = px / pz
+                        yn = py / pz
+                        if use_dist:
+                            r2 = xn * xn + yn * yn
+                            rad = 1.0 + distp[0] * r2 + distp[1] * r2 * r2 + distp[4] * r2 * r2 * r2
+                            xd = xn * rad + 2.0 * distp[2] * xn * yn + distp[3] * (r2 + 2.0 * xn * xn)
+                            yd = yn * rad + distp[2] * (r2 + 2.0 * yn * yn) + 2.0 * distp[3] * xn * yn
+                            xn, yn = xd, yd
+                        up = Kp[0, 0] * xn + Kp[0, 1] * yn + Kp[0, 2]
+                        vp = Kp[1, 1] * yn + Kp[1, 2]
+                        iu = int(np.floor(up + 0.5))
+                        iv = int(np.floor(vp + 0.5))
+                        if iu >= 0 and iu < Wp and iv >= 0 and iv < Hp:
+                            lit = True
+                            if has_shadow:
+                                tanv = np.sqrt(max(0.0, 1.0 - cosv * cosv)) / cosv
+                                b = bias + 1.5 * pz / fp * min(tanv, 10.0)
+                                if pz > depth_proj[iv, iu] + b:
+                                    lit = False
+                            if lit:
+                                s = vp / period - phase_frac
+                                s = s - np.floor(s)
+                                if s < duty:
+                                    val += power * cosv / d2
+            out[i, j] = val
+
+
+def _as_cam(c, name: str) -> PinholeCamera:
+    if not isinstance(c, PinholeCamera):
+        raise ProjectorError(f"'{name}' must be a PinholeCamera, got {type(c).__name__}")
+    return c
+
+
+def shade_stripes(
+    depth_cam: np.ndarray,
+    cam: PinholeCamera,
+    projector: Projector,
+    normals: np.ndarray,
+    depth_proj: np.ndarray | None,
+    face: np.ndarray | None = None,
+    rays: np.ndarray | None = None,
+) -> np.ndarray:
+    """Light from a striped projector (plus ambient) reaching each camera pixel.
+
+    Args:
+        depth_cam: (H, W) camera-z depth map in metres, ``inf`` (or 0 / NaN) on background.
+        cam: the camera that produced ``depth_cam`` (its lens distortion is undone when
+            back-projecting).
+        projector: the :class:`Projector`.
+        normals: either (H, W, 3) per-pixel world normals (``face`` None), or (M, 3) world face
+            normals indexed by ``face``. Orientation does not matter (normals are turned towards
+            the camera); zero normals get ambient only.
+        depth_proj: (Hp, Wp) camera-z depth map rendered from ``projector.cam`` (shadow map,
+            inf background), or None to ignore shadows.
+        face: (H, W) int face index map (-1 background) when ``normals`` are face normals.
+        rays: optional precomputed :func:`camera_rays` of ``cam`` (saves time in loops).
+
+    Returns:
+        (H, W) float32 irradiance (linear units of ``projector.power``), 0 on background.
+
+    Raises:
+        ProjectorError: when shapes do not match the cameras.
+    """
+    cam = _as_cam(cam, "cam")
+    if not isinstance(projector, Projector):
+        raise ProjectorError(f"'projector' must be a Projector, got {type(projector).__name__}")
+    H, W = cam.height, cam.width
+    depth = np.asarray(depth_cam, dtype=np.float32)
+    if depth.shape != (H, W):
+        raise ProjectorError(f"'depth_cam' must have the camera's shape {(H, W)}, got {depth.shape}")
+    depth = np.where(np.isfinite(depth) & (depth > 0), depth, np.float32(np.inf)).astype(np.float32)
+    normals = np.asarray(normals, dtype=np.float64)
+    if face is None:
+        if normals.shape != (H, W, 3):
+            raise ProjectorError(f"per-pixel 'normals' must have shape {(H, W, 3)}, got {normals.shape}")
+        nrm = np.ascontiguousarray(normals.reshape(-1, 3))
+        idx = np.arange(H * W, dtype=np.int32).reshape(H, W)
+    else:
+        idx = np.ascontiguousarray(face, dtype=np.int32)
+        if idx.shape != (H, W):
+            raise ProjectorError(f"'face' must have shape {(H, W)}, got {idx.shape}")
+        if normals.ndim != 2 or normals.shape[1] != 3:
+            raise ProjectorError(f"face 'normals' must have shape (M, 3), got {normals.shape}")
+        if idx.size and idx.max() >= normals.shape[0]:
+            raise ProjectorError(f"'face' indexes face {idx.max()} but only {normals.shape[0]} normals given")
+        nrm = np.ascontiguousarray(normals)
+    pc = projector.cam
+    if depth_proj is None:
+        dp = np.empty((1, 1), np.float32)
+        has_shadow = False
+    else:
+        dp = np.asarray(depth_proj, dtype=np.float32)
+        if dp.shape != (pc.height, pc.width):
+            raise ProjectorError(f"'depth_proj' must have the projector's shape {(pc.height, pc.width)}, got {dp.shape}")
+        dp = np.where(np.isfinite(dp) & (dp > 0), dp, np.float32(np.inf)).astype(np.float32)
+        has_shadow = True
+    if rays is None:
+        rays = camera_rays(cam)
+    elif rays.shape != (H, W, 2):
+        raise ProjectorError(f"'rays' must have shape {(H, W, 2)}, got {rays.shape}")
+    out = np.empty((H, W), np.float32)
+    _shade(depth, np.ascontiguousarray(rays, dtype=np.float64), idx, nrm, cam.R, cam.t,
+           pc.K, pc.R, pc.t, pc.dist, bool(np.any(pc.dist)), pc.height, pc.width, dp, has_shadow,
+           projector.period_px, projector.phase / (2 * np.pi), projector.duty, projector.power,
+           projector.ambient, projector.shadow_bias, out)
+    return out
+
+
+def render_stripes_batch(
+    Vs: np.ndarray, F: np.ndarray, cam: PinholeCamera, projector: Projector, *,
+    shadows: bool = True, near: float = DEFAULT_NEAR,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Fast-path striped images of T frames of a mesh (rasteriser + :func:`shade_stripes`).
+
+    Args:
+        Vs: (T, N, 3) world vertices per frame, metres.
+        F: (M, 3) triangle indices.
+        cam: the camera.
+        projector: the projector.
+        shadows: render the projector's depth map and shadow with it.
+        near: near-plane distance in metres.
+
+    Returns:
+        ``(intensity, depth)``: (T, H, W) float32 irradiance (0 background) and (T, H, W)
+        float32 camera depth (inf background).
+    """
+    try:
+        Vs, F = _check_mesh(Vs, F, batch=True)
+        _check_cam(cam)
+        _check_cam(projector.cam)
+    except RasterError as e:
+        raise ProjectorError(str(e)) from e
+    depth, face, _, _ = _run(Vs, F, cam, near, 1)
+    dproj = _run(Vs, F, projector.cam, near, 1)[0] if shadows else None
+    normals = face_normals(Vs, F)
+    rays = camera_rays(cam)
+    out = np.empty_like(depth)
+    for k in range(Vs.shape[0]):
+        out[k] = shade_stripes(depth[k], cam, projector, normals[k], None if dproj is None else dproj[k],
+                               face=face[k], rays=rays)
+    return out, depth
+
+
+def render_stripes(
+    V: np.ndarray, F: np.ndarray, cam: PinholeCamera, projector: Projector, *, shadows: bool = True,
+    near: float = DEFAULT_NEAR,
+) -> np.ndarray:
+    """Fast-path striped image of one mesh: (H, W) float32 irradiance (see :func:`shade_stripes`)."""
+    V = np.asarray(V)
+    if V.ndim != 2:
+        raise ProjectorError(f"vertices 'V' must have shape (N, 3), got {V.shape}")
+    return render_stripes_batch(V[None], F, cam, projector, shadows=shadows, near=near)[0][0]
