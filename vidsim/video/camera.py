@@ -170,7 +170,7 @@ def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0,
     eye = np.asarray(eye, float)
     z = np.asarray(target, float) - eye
     z /= np.linalg.norm(z)
-    x = np.cross(z, -np.asarray(up, float))
+    x = np.cross(z, np.asarray(up, float))  # image x = right when 'up' is up
     if np.linalg.norm(x) < 1e-9:
         raise CameraError("look_at: viewing direction is parallel to 'up'")
     x /= np.linalg.norm(x)
