@@ -1,1 +1,84 @@
-"""vidsim.config."""
+"""Hydra structured configs: registration in the ConfigStore, validation, camera building."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from vidsim.config.schema import GROUPS, VidsimConfig
+from vidsim.errors import ConfigError
+from vidsim.video.camera import PinholeCamera, intrinsics, look_at
+
+CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+
+
+def register() -> None:
+    """Register the schemas: ``base_config`` and ``<group>/base_<group>``."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=VidsimConfig)
+    for group, node in GROUPS.items():
+        cs.store(group=group, name=f"base_{group}", node=node)
+
+
+register()
+
+
+def _check(cond: bool, key: str, value: Any, expected: str) -> None:
+    if not cond:
+        raise ConfigError(f"config value {key} = {value!r} is not valid: expected {expected}")
+
+
+def _finite(x: Any) -> bool:
+    try:
+        return all(math.isfinite(float(v)) for v in (x if isinstance(x, (list, tuple)) else [x]))
+    except (TypeError, ValueError):
+        return False
+
+
+def validate(cfg: DictConfig) -> None:
+    """Reject non-physical values (NaN, negative sizes, zero-length vectors) naming the key."""
+    c = cfg.camera
+    _check(c.width > 0 and c.height > 0, "camera.width/height", f"{c.width}x{c.height}", "positive image size")
+    _check(_finite(c.fx) and c.fx > 0, "camera.fx", c.fx, "a focal length > 0 in pixels")
+    _check(len(c.dist) == 5 and _finite(list(c.dist)), "camera.dist", list(c.dist), "5 finite coefficients k1 k2 p1 p2 k3")
+    for k in ("eye", "target", "up"):
+        _check(len(c[k]) == 3 and _finite(list(c[k])), f"camera.{k}", list(c[k]), "3 finite numbers (metres)")
+    _check(np.linalg.norm(np.subtract(c.target, c.eye)) > 1e-6, "camera.target", list(c.target), "a point different from camera.eye")
+    r = cfg.reality
+    _check(r.n_frames > 0, "reality.n_frames", r.n_frames, "> 0")
+    _check(_finite(r.fps) and r.fps > 0, "reality.fps", r.fps, "> 0 frames per second")
+    _check(r.lead_in_s >= 0, "reality.lead_in_s", r.lead_in_s, ">= 0 s")
+    rd = cfg.render
+    _check(rd.backend in ("pyrender", "raster"), "render.backend", rd.backend, "'pyrender' or 'raster'")
+    _check(_finite(rd.noise_sigma) and rd.noise_sigma >= 0, "render.noise_sigma", rd.noise_sigma, ">= 0")
+    _check(0 <= rd.jpeg_quality <= 100, "render.jpeg_quality", rd.jpeg_quality, "0 (off) to 100")
+    d = cfg.effects.dynamics
+    for k in ("air_drag", "angular_drag", "magnus"):
+        _check(_finite(d[k]) and d[k] >= 0, f"effects.dynamics.{k}", d[k], ">= 0")
+    im = cfg.effects.imaging
+    for k in ("exposure_s", "rolling_shutter_s", "time_jitter_s"):
+        _check(_finite(im[k]) and im[k] >= 0, f"effects.imaging.{k}", im[k], ">= 0 s")
+    _check(cfg.calibrate.n_views >= 3, "calibrate.n_views", cfg.calibrate.n_views, ">= 3 views")
+
+
+def camera_from_config(c: DictConfig | Any) -> PinholeCamera:
+    """Build the reality's :class:`PinholeCamera` from a ``camera`` config node."""
+    fy = c.fx if c.get("fy") is None else c.fy
+    cx = (c.width - 1) / 2 if c.get("cx") is None else c.cx
+    cy = (c.height - 1) / 2 if c.get("cy") is None else c.cy
+    R, t = look_at(np.array(c.eye, float), np.array(c.target, float), np.array(c.up, float))
+    roll = math.radians(c.get("roll_deg", 0.0) or 0.0)
+    if roll:
+        Rz = np.array([[math.cos(roll), -math.sin(roll), 0], [math.sin(roll), math.cos(roll), 0], [0, 0, 1]])
+        R, t = Rz @ R, Rz @ t
+    return PinholeCamera(intrinsics(c.fx, fy, cx, cy), R, t, c.width, c.height, np.array(c.dist, float))
+
+
+def to_plain(cfg: DictConfig) -> dict:
+    """Resolved plain-python copy of a config node (for provenance in outputs)."""
+    return OmegaConf.to_container(cfg, resolve=True)  # type: ignore[return-value]

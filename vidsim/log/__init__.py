@@ -1,1 +1,165 @@
-"""vidsim.log."""
+"""Rerun recordings behind a small interface, plus a no-op logger for tests.
+
+Entity layout (the same in every stage, so recordings can be compared side by side)::
+
+    footage/camera/image      the input frames            sim/camera/image     simulated frames
+    footage/camera/mask       input silhouettes           sim/camera/mask      simulated silhouettes
+    world/...                 3D content (meshes, trajectories, cameras)
+    metric/<name>             per-frame metric values     optim/<name>         per-iteration values
+
+Time lines: ``frame`` (sequence index of the footage) and ``iter`` (optimiser iteration).
+The ``.rrd`` is written to a temporary file and renamed onto its path on :meth:`close`, so a
+killed stage never leaves a truncated recording that Snakemake would take as done.
+Open one with ``rerun results/<stage>/<name>.rrd``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+
+class Logger(Protocol):
+    """What stages log through; implemented by :class:`RerunLogger` and :class:`NullLogger`."""
+
+    def set_frame(self, i: int) -> None: ...
+    def image(self, entity: str, img: np.ndarray) -> None: ...
+    def mask(self, entity: str, mask: np.ndarray) -> None: ...
+    def scalar(self, entity: str, value: float) -> None: ...
+    def series(self, entity: str, values: np.ndarray, timeline: str = "iter") -> None: ...
+    def points3d(self, entity: str, pts: np.ndarray, radii: float = 0.005, colors: Any = None) -> None: ...
+    def mesh3d(self, entity: str, vertices: np.ndarray, faces: np.ndarray, color: Any = None) -> None: ...
+    def arrows2d(self, entity: str, origins: np.ndarray, vectors: np.ndarray) -> None: ...
+    def text(self, entity: str, text: str) -> None: ...
+    def close(self) -> None: ...
+
+
+class NullLogger:
+    """Logs nothing (tests, benchmarks)."""
+
+    def __getattr__(self, name: str):
+        return lambda *a, **k: None
+
+    def __enter__(self) -> "NullLogger":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        return None
+
+
+class RerunLogger:
+    """Writes one Rerun recording (``.rrd``) per stage.
+
+    Args:
+        path: destination ``.rrd`` (written atomically on :meth:`close`).
+        app_id: Rerun application id, e.g. ``vidsim.calibrate``.
+        recording_id: stable id (e.g. the stage's output name) so reruns are comparable.
+    """
+
+    def __init__(self, path: str | os.PathLike, app_id: str, recording_id: str | None = None) -> None:
+        import rerun as rr
+
+        self._rr = rr
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._tmp = self.path.with_name(f".{self.path.name}.part")
+        app_id = re.sub(r"[^a-z0-9_-]", "-", app_id.lower())  # rerun's entry-name rules
+        self.rec = rr.RecordingStream(app_id, recording_id=recording_id or self.path.stem)
+        self.rec.save(str(self._tmp))
+        self._closed = False
+
+    # -- context manager -------------------------------------------------------------
+    def __enter__(self) -> "RerunLogger":
+        return self
+
+    def __exit__(self, exc_type: Any, *exc: Any) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.abort()
+
+    # -- logging ----------------------------------------------------------------------
+    def set_frame(self, i: int) -> None:
+        self.rec.set_time("frame", sequence=int(i))
+
+    def set_iter(self, i: int) -> None:
+        self.rec.set_time("iter", sequence=int(i))
+
+    def image(self, entity: str, img: np.ndarray) -> None:
+        self.rec.log(entity, self._rr.Image(np.ascontiguousarray(img)))
+
+    def mask(self, entity: str, mask: np.ndarray) -> None:
+        self.rec.log(entity, self._rr.SegmentationImage(np.ascontiguousarray(mask, dtype=np.uint8)))
+
+    def depth(self, entity: str, depth: np.ndarray) -> None:
+        d = np.where(np.isfinite(depth), depth, 0).astype(np.float32)
+        self.rec.log(entity, self._rr.DepthImage(d, meter=1.0))
+
+    def scalar(self, entity: str, value: float) -> None:
+        self.rec.log(entity, self._rr.Scalars(float(value)))
+
+    def series(self, entity: str, values: np.ndarray, timeline: str = "iter") -> None:
+        values = np.asarray(values, dtype=float)
+        rr = self._rr
+        self.rec.send_columns(
+            entity,
+            indexes=[rr.TimeColumn(timeline, sequence=np.arange(values.size))],
+            columns=rr.Scalars.columns(scalars=values),
+        )
+
+    def points3d(self, entity: str, pts: np.ndarray, radii: float = 0.005, colors: Any = None) -> None:
+        self.rec.log(entity, self._rr.Points3D(np.asarray(pts, dtype=np.float32), radii=radii, colors=colors))
+
+    def lines3d(self, entity: str, strips: list[np.ndarray], colors: Any = None) -> None:
+        self.rec.log(entity, self._rr.LineStrips3D([np.asarray(s, np.float32) for s in strips], colors=colors))
+
+    def mesh3d(self, entity: str, vertices: np.ndarray, faces: np.ndarray, color: Any = None) -> None:
+        kw = {"vertex_colors": None}
+        if color is not None:
+            kw = {"albedo_factor": color}
+        self.rec.log(
+            entity,
+            self._rr.Mesh3D(vertex_positions=np.asarray(vertices, np.float32), triangle_indices=np.asarray(faces, np.uint32), **kw),
+        )
+
+    def arrows2d(self, entity: str, origins: np.ndarray, vectors: np.ndarray) -> None:
+        self.rec.log(entity, self._rr.Arrows2D(origins=np.asarray(origins, np.float32), vectors=np.asarray(vectors, np.float32)))
+
+    def camera(self, entity: str, cam: Any) -> None:
+        """Log a :class:`~vidsim.video.camera.PinholeCamera` (pose + intrinsics) at ``entity``."""
+        rr = self._rr
+        self.rec.log(entity, rr.Transform3D(translation=cam.center, mat3x3=cam.R.T))
+        self.rec.log(entity, rr.Pinhole(image_from_camera=cam.K, width=cam.width, height=cam.height))
+
+    def text(self, entity: str, text: str) -> None:
+        self.rec.log(entity, self._rr.TextLog(text))
+
+    # -- finishing --------------------------------------------------------------------
+    def close(self) -> None:
+        """Flush and move the recording onto its final path."""
+        if self._closed:
+            return
+        self.rec.flush()
+        self.rec.disconnect()
+        os.replace(self._tmp, self.path)
+        self._closed = True
+
+    def abort(self) -> None:
+        """Drop the partial recording (the stage failed)."""
+        if self._closed:
+            return
+        self.rec.disconnect()
+        if self._tmp.exists():
+            self._tmp.unlink()
+        self._closed = True
+
+
+def make_logger(path: str | os.PathLike | None, app_id: str, enabled: bool = True) -> RerunLogger | NullLogger:
+    """A :class:`RerunLogger` writing ``path``, or a :class:`NullLogger` when disabled or no path."""
+    if not enabled or path is None:
+        return NullLogger()
+    return RerunLogger(path, app_id)

@@ -1,0 +1,87 @@
+"""Config schemas: typos and non-physical values are errors that name the key."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.errors import ConfigCompositionException
+
+from vidsim.config import CONF_DIR, camera_from_config, validate
+from vidsim.errors import ConfigError
+
+
+def _compose(*overrides: str):
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=["paths.out=/tmp/vidsim-test", *overrides])
+
+
+def test_default_config_composes_and_validates():
+    cfg = _compose()
+    validate(cfg)
+    cam = camera_from_config(cfg.camera)
+    assert (cam.width, cam.height) == (640, 480)
+
+
+@pytest.mark.parametrize("override", ["camera.fxx=3", "effects.dynamics.air_dragg=1", "render.noise=1"])
+def test_misspelt_key_is_an_error_naming_it(override):
+    key = override.split("=")[0]
+    with pytest.raises(ConfigCompositionException, match=key.replace(".", r"\.")):
+        _compose(override)
+
+
+def test_wrong_type_is_an_error():
+    with pytest.raises(ConfigCompositionException, match="camera.fx"):
+        _compose("camera.fx=abc")
+
+
+@pytest.mark.parametrize(
+    "override,key",
+    [
+        ("camera.fx=-5", "camera.fx"),
+        ("camera.fx=nan", "camera.fx"),
+        ("reality.n_frames=0", "reality.n_frames"),
+        ("effects.dynamics.air_drag=-1", "effects.dynamics.air_drag"),
+        ("camera.target=[0,-3.5,1.1]", "camera.target"),
+        ("render.backend=opengl", "render.backend"),
+    ],
+)
+def test_non_physical_values_are_rejected(override, key):
+    cfg = _compose(override)
+    with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+        validate(cfg)
+
+
+def test_camera_from_config_looks_at_target():
+    cfg = _compose("camera.roll_deg=0")
+    cam = camera_from_config(cfg.camera)
+    uv = cam.project(np.array(cfg.camera.target, float)[None])[0]
+    assert np.allclose(uv, [(cam.width - 1) / 2, (cam.height - 1) / 2], atol=1e-6)
+    # world up appears up in the image (smaller row index)
+    above = cam.project(np.array(cfg.camera.target, float)[None] + [0, 0, 0.2])[0]
+    assert above[1] < uv[1]
+
+
+def test_cli_bad_key_gives_one_clear_line(tmp_path):
+    r = subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.out={tmp_path}/o", "camera.fxx=3"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode != 0
+    assert "camera.fxx" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_cli_missing_calibration_names_the_file(tmp_path):
+    missing = tmp_path / "nope" / "calibration.yaml"
+    r = subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.out={tmp_path}/o", f"paths.calibration={missing}"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode == 2
+    assert str(missing) in r.stderr and "missing" in r.stderr
+    assert "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()

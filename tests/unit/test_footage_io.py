@@ -1,0 +1,120 @@
+"""Footage folder format: round trip, and clear errors for bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from vidsim.errors import FootageError
+from vidsim.io.footage import read_footage, read_truth, read_video, truth_path, write_footage, write_truth
+from vidsim.video.camera import PinholeCamera, intrinsics
+
+
+def _cam(w=64, h=48):
+    return PinholeCamera(intrinsics(60.0, None, (w - 1) / 2, (h - 1) / 2), width=w, height=h)
+
+
+def _write(folder: Path, rng, n=5, w=64, h=48):
+    frames = rng.integers(0, 255, (n, h, w, 3), dtype=np.uint8)
+    times = np.arange(n) / 30.0
+    write_footage(folder, frames, times, {"camera": _cam(w, h)}, {"object": "box"})
+    return frames, times
+
+
+def test_round_trip(tmp_path, rng):
+    frames, times = _write(tmp_path / "f", rng)
+    fo = read_footage(tmp_path / "f", required_meta=("object",))
+    assert np.array_equal(fo.frames, frames)  # PNG is lossless
+    assert np.allclose(fo.times, times)
+    assert np.allclose(fo.camera.K, _cam().K)
+    write_truth(tmp_path / "f", {"secret": 1})
+    assert truth_path(tmp_path / "f").parent == tmp_path  # truth is beside, never inside
+    assert not any("truth" in p.name for p in (tmp_path / "f").rglob("*"))
+    assert read_truth(tmp_path / "f")["secret"] == 1
+
+
+def test_missing_folder(tmp_path):
+    with pytest.raises(FootageError, match="footage folder is missing"):
+        read_footage(tmp_path / "absent")
+
+
+def test_corrupt_image_is_named(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    bad = tmp_path / "f" / "frames" / "000002.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n garbage")
+    with pytest.raises(FootageError, match="000002.png.*corrupt"):
+        read_footage(tmp_path / "f")
+
+
+def test_frames_of_different_sizes(tmp_path, rng):
+    import cv2
+
+    _write(tmp_path / "f", rng)
+    cv2.imwrite(str(tmp_path / "f" / "frames" / "000003.png"), np.zeros((10, 10, 3), np.uint8))
+    with pytest.raises(FootageError, match="000003.png.*differs"):
+        read_footage(tmp_path / "f")
+
+
+def test_backwards_timestamps(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    (tmp_path / "f" / "times.csv").write_text("time_s\n0\n0.1\n0.05\n0.2\n0.3\n")
+    with pytest.raises(FootageError, match="times.csv.*must increase.*frame 2"):
+        read_footage(tmp_path / "f")
+
+
+def test_missing_meta_field(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    with pytest.raises(FootageError, match=r"meta.yaml.*missing field.*inertia"):
+        read_footage(tmp_path / "f", required_meta=("inertia",))
+
+
+def test_singular_camera_matrix(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    p = tmp_path / "f" / "calibration.yaml"
+    d = yaml.safe_load(p.read_text())
+    d["camera"]["K"] = [[0, 0, 0], [0, 0, 0], [0, 0, 1]]
+    p.write_text(yaml.safe_dump(d))
+    with pytest.raises(FootageError, match="calibration.yaml.*'K'.*singular"):
+        read_footage(tmp_path / "f")
+
+
+def test_calibration_frame_size_mismatch(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    p = tmp_path / "f" / "calibration.yaml"
+    d = yaml.safe_load(p.read_text())
+    d["camera"]["width"] = 640
+    p.write_text(yaml.safe_dump(d))
+    with pytest.raises(FootageError, match="640x48 does not match the frames"):
+        read_footage(tmp_path / "f")
+
+
+def test_zero_frames(tmp_path, rng):
+    _write(tmp_path / "f", rng)
+    for p in (tmp_path / "f" / "frames").iterdir():
+        p.unlink()
+    with pytest.raises(FootageError, match="zero frames"):
+        read_footage(tmp_path / "f")
+
+
+@pytest.mark.parametrize("keep,message", [(2000, "zero frames"), (100_000, "truncated"), (0.5, "truncated")])
+def test_truncated_video(tmp_path, shared_data, keep, message):
+    data = (shared_data / "tracklab_physics" / "verticalToss.webm").read_bytes()
+    n = int(keep * len(data)) if isinstance(keep, float) else keep
+    bad = tmp_path / "cut.webm"
+    bad.write_bytes(data[:n])
+    with pytest.raises(FootageError, match=f"cut.webm.*{message}"):
+        read_video(bad)
+
+
+def test_real_webm_uses_container_timestamps(shared_data):
+    frames, t = read_video(shared_data / "tracklab_physics" / "verticalToss.webm")
+    assert frames.shape[1:] == (480, 640, 3)
+    assert frames.shape[0] == 76
+    dt = np.diff(t)
+    assert np.all(dt > 0)
+    # variable frame rate near 31 fps: not a constant 1/30 s
+    assert 1 / 40 < np.median(dt) < 1 / 25
+    assert dt.max() - dt.min() > 1e-3

@@ -1,0 +1,41 @@
+"""The one way a stage becomes a command: a Hydra app with validation and one-line errors.
+
+Each ``vidsim/cli/<stage>.py`` defines ``run(cfg)`` and ends with ``main = stage_app("<stage>",
+run)``; ``python -m vidsim.cli.<stage> key=value ...`` then composes ``conf/config.yaml`` with
+the overrides (``-m`` sweeps), validates it, and runs the stage. Bad input (any
+:class:`~vidsim.errors.VidsimError`, a missing file) ends the process with exit code 2 and one
+line on stderr that names the file, field or value -- never a bare traceback.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import sys
+from typing import Callable
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+import hydra  # noqa: E402
+from omegaconf import DictConfig  # noqa: E402
+
+from vidsim.config import CONF_DIR, validate  # noqa: E402
+from vidsim.errors import VidsimError  # noqa: E402
+
+log = logging.getLogger("vidsim")
+
+
+def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None]:
+    """Wrap ``run(cfg)`` as a Hydra main function for stage ``name``."""
+
+    @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
+    def _main(cfg: DictConfig) -> None:
+        try:
+            validate(cfg)
+            run(cfg)
+        except (VidsimError, FileNotFoundError) as e:
+            print(f"vidsim {name}: error: {e}", file=sys.stderr)
+            sys.exit(2)
+
+    _main.__name__ = name
+    return _main

@@ -1,0 +1,160 @@
+"""Hydra structured-config schemas.
+
+Every YAML file under ``conf/`` extends one of these dataclasses, so a misspelt key or a
+value of the wrong type is an error that names the key (Hydra/OmegaConf struct mode), and
+:func:`validate` rejects non-physical values with a :class:`~vidsim.errors.ConfigError`
+naming the key. Units are SI unless a name says otherwise (``_px``, ``_deg``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+from omegaconf import MISSING
+
+
+def _v3(*x: float):
+    return field(default_factory=lambda: list(x))
+
+
+@dataclass
+class CameraConfig:
+    """The (reality's) camera: intrinsics in pixels, pose by eye/target/up in metres.
+
+    ``roll_deg`` rolls the camera about its optical axis; with ``eye``/``target`` it sets the
+    camera's orientation relative to gravity, which the estimators do not know.
+    """
+
+    width: int = 640
+    height: int = 480
+    fx: float = 700.0
+    fy: Optional[float] = None
+    cx: Optional[float] = None
+    cy: Optional[float] = None
+    dist: list[float] = _v3(0.0, 0.0, 0.0, 0.0, 0.0)
+    eye: list[float] = _v3(0.0, -3.5, 1.0)
+    target: list[float] = _v3(0.0, 0.0, 1.0)
+    up: list[float] = _v3(0.0, 0.0, 1.0)
+    roll_deg: float = 0.0
+
+
+@dataclass
+class ProjectorConfig:
+    """Structured-light projector (a second pinhole) casting horizontal stripes."""
+
+    enabled: bool = False
+    width: int = 800
+    height: int = 600
+    fx: float = 900.0
+    eye: list[float] = _v3(0.4, -2.0, 1.3)
+    target: list[float] = _v3(0.0, 0.0, 1.0)
+    up: list[float] = _v3(0.0, 0.0, 1.0)
+    period_px: float = 16.0
+    power: float = 1.0
+    ambient: float = 0.15
+
+
+@dataclass
+class DynamicsEffects:
+    """Physical effects reality can switch on (0 = off). The models never contain them by default."""
+
+    air_drag: float = 0.0  # multiplier of the ambient air density (1 = air at 1.2 kg/m^3)
+    angular_drag: float = 0.0  # multiplier of MuJoCo's rotational fluid drag
+    magnus: float = 0.0  # multiplier of the Magnus lift coefficient
+    wind: list[float] = _v3(0.0, 0.0, 0.0)  # m/s, world frame
+    com_offset: list[float] = _v3(0.0, 0.0, 0.0)  # m, body frame, vs. what meta.yaml says
+    gravity_tilt_deg: float = 0.0
+
+
+@dataclass
+class ImagingEffects:
+    """Camera imperfections reality can switch on (0 = off), unknown to the calibration."""
+
+    lens_k1: float = 0.0  # extra radial distortion the calibration does not know
+    exposure_s: float = 0.0  # finite exposure -> motion blur
+    rolling_shutter_s: float = 0.0  # readout time top -> bottom row
+    time_jitter_s: float = 0.0  # std. dev. of frame-time jitter
+    time_offset_s: float = 0.0  # constant offset of the frame clock
+
+
+@dataclass
+class EffectsConfig:
+    dynamics: DynamicsEffects = field(default_factory=DynamicsEffects)
+    imaging: ImagingEffects = field(default_factory=ImagingEffects)
+
+
+@dataclass
+class RenderConfig:
+    """How footage is imaged: sensor noise (digital numbers, 0-255), compression, blur."""
+
+    backend: str = "pyrender"  # pyrender | raster
+    noise_sigma: float = 2.0
+    jpeg_quality: int = 92  # 0 disables compression
+    blur_sigma_px: float = 0.0
+    light_intensity: float = 3.0
+
+
+@dataclass
+class LogConfig:
+    rerun: bool = True
+    progress: bool = True
+    level: str = "INFO"
+
+
+@dataclass
+class RealityConfig:
+    """What the stand-in for the real world films."""
+
+    kind: str = "demo"  # demo | rigid | cloth | fluid
+    n_frames: int = 40
+    fps: float = 30.0
+    lead_in_s: float = 1.0  # background-only frames before the action
+    seed: int = 0
+
+
+@dataclass
+class CalibrateConfig:
+    """Calibration stage: a planar target filmed at several poses."""
+
+    n_views: int = 12
+    noise_sigma: float = 1.0
+    with_projector: bool = False
+    max_rms_px: float = 0.5  # the stage fails loudly above this
+
+
+@dataclass
+class PathsConfig:
+    """Inputs and outputs of one stage invocation (Snakemake fills these in)."""
+
+    results: str = "results"
+    footage: str = ""
+    calibration: str = ""
+    out: str = MISSING
+
+
+@dataclass
+class VidsimConfig:
+    """The whole configuration tree every stage sees."""
+
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    projector: ProjectorConfig = field(default_factory=ProjectorConfig)
+    reality: RealityConfig = field(default_factory=RealityConfig)
+    effects: EffectsConfig = field(default_factory=EffectsConfig)
+    render: RenderConfig = field(default_factory=RenderConfig)
+    log: LogConfig = field(default_factory=LogConfig)
+    calibrate: CalibrateConfig = field(default_factory=CalibrateConfig)
+    paths: PathsConfig = field(default_factory=PathsConfig)
+    seed: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+GROUPS = {
+    "camera": CameraConfig,
+    "projector": ProjectorConfig,
+    "reality": RealityConfig,
+    "effects": EffectsConfig,
+    "render": RenderConfig,
+    "log": LogConfig,
+    "calibrate": CalibrateConfig,
+}

@@ -1,0 +1,52 @@
+# Camera (and projector) calibration: the real chessboard set and synthetic scene targets.
+
+
+rule calibrate_chessboard:
+    """Calibrate the left camera of OpenCV's real chessboard set; compare with OpenCV's reference."""
+    input:
+        images=SHARED / "opencv_chessboard",
+    output:
+        calib=f"{RESULTS}/calibration/chessboard/calibration.yaml",
+        summary=report(
+            f"{RESULTS}/calibration/chessboard/summary.csv",
+            caption="../report/calibration_chessboard.rst",
+            category="Calibration",
+        ),
+        plot=report(
+            f"{RESULTS}/calibration/chessboard/reprojection.png",
+            caption="../report/calibration_chessboard.rst",
+            category="Calibration",
+        ),
+    params:
+        out=f"{RESULTS}/calibration/chessboard",
+        extra=HYDRA_EXTRA,
+    log:
+        f"{RESULTS}/logs/calibrate_chessboard.log",
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    shell:
+        "python -m vidsim.cli.calibrate_real paths.footage={input.images} paths.out={params.out} {params.extra} > {log} 2>&1"
+
+
+rule calibrate_scene:
+    """Film a calibration target with the scene's camera (and projector) and calibrate from the images."""
+    output:
+        calib=f"{RESULTS}/calibration/{{scene}}/calibration.yaml",
+        summary=report(
+            f"{RESULTS}/calibration/{{scene}}/summary.csv",
+            caption="../report/calibration_scene.rst",
+            category="Calibration",
+            subcategory="{scene}",
+        ),
+        rrd=f"{RESULTS}/calibration/{{scene}}/calibrate.rrd",
+    params:
+        out=f"{RESULTS}/calibration/{{scene}}",
+        extra=HYDRA_EXTRA,
+    log:
+        f"{RESULTS}/logs/calibrate_{{scene}}.log",
+    resources:
+        mem_mb=1500,
+        runtime=10,
+    shell:
+        "python -m vidsim.cli.calibrate paths.out={params.out} {params.extra} > {log} 2>&1"

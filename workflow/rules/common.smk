@@ -1,0 +1,22 @@
+# Helpers shared by all rules (input functions live only here).
+from pathlib import Path
+
+RESULTS = config.get("results", "results")
+SHARED = Path(config.get("shared_data", "../shared/data"))
+HYDRA_EXTRA = config.get("hydra_overrides", "")
+
+
+def stage_enabled(name):
+    return bool(config.get("stages", {}).get(name, False))
+
+
+def get_final_outputs(wildcards):
+    """Everything `rule all` asks for, by the stages switched on in the config."""
+    out = []
+    if stage_enabled("calibration_chessboard"):
+        out += [f"{RESULTS}/calibration/chessboard/calibration.yaml"]
+    if stage_enabled("demo"):
+        for s in config["demo"]["scenes"]:
+            out += [f"{RESULTS}/calibration/{s}/calibration.yaml", f"{RESULTS}/footage/{s}/meta.yaml",
+                    f"{RESULTS}/footage/{s}/contact_sheet.png"]
+    return out

@@ -1,0 +1,27 @@
+# The foundation's demo: reality renders a short clip into a footage folder (truth kept beside it).
+
+
+rule reality_demo:
+    """Render a tumbling box over a textured wall; write the footage folder and its truth beside it."""
+    input:
+        calib=f"{RESULTS}/calibration/{{scene}}/calibration.yaml",
+    output:
+        meta=f"{RESULTS}/footage/{{scene}}/meta.yaml",
+        truth=f"{RESULTS}/footage/{{scene}}.truth.yaml",
+        sheet=report(
+            f"{RESULTS}/footage/{{scene}}/contact_sheet.png",
+            caption="../report/footage_demo.rst",
+            category="Footage",
+            subcategory="{scene}",
+        ),
+        rrd=f"{RESULTS}/footage/{{scene}}/reality.rrd",
+    params:
+        out=f"{RESULTS}/footage/{{scene}}",
+        extra=HYDRA_EXTRA,
+    log:
+        f"{RESULTS}/logs/reality_{{scene}}.log",
+    resources:
+        mem_mb=1500,
+        runtime=10,
+    shell:
+        "python -m vidsim.cli.reality_demo paths.calibration={input.calib} paths.out={params.out} {params.extra} > {log} 2>&1"
