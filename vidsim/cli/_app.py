@@ -25,6 +25,11 @@ from vidsim.errors import VidsimError  # noqa: E402
 log = logging.getLogger("vidsim")
 
 
+def _fail(name: str, e: Exception) -> None:
+    print(f"vidsim {name}: error: {e}", file=sys.stderr)
+    sys.exit(2)
+
+
 def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None]:
     """Wrap ``run(cfg)`` as a Hydra main function for stage ``name``."""
 
@@ -34,8 +39,13 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
             validate(cfg)
             run(cfg)
         except (VidsimError, FileNotFoundError) as e:
-            print(f"vidsim {name}: error: {e}", file=sys.stderr)
-            sys.exit(2)
+            _fail(name, e)
+        except ValueError as e:
+            # the project's own validation errors (CameraError, CalibrationError, ...) are
+            # ValueError subclasses defined in vidsim modules: one line, no traceback
+            if type(e).__module__.startswith("vidsim"):
+                _fail(name, e)
+            raise
 
     _main.__name__ = name
     return _main

@@ -29,6 +29,7 @@ from vidsim.io.atomic import atomic_path, write_text, write_yaml
 from vidsim.video.camera import CameraError, PinholeCamera
 
 FRAME_DIR = "frames"
+DEVICES = ("camera", "projector")
 VIDEO_EXTS = (".webm", ".mp4", ".avi", ".mkv", ".mov")
 
 
@@ -126,6 +127,8 @@ def read_calibration(path: str | os.PathLike, frame_size: tuple[int, int] | None
         raise FootageError(f"{path}: field 'camera' is missing")
     cams: dict[str, PinholeCamera] = {}
     for name, d in data.items():
+        if name not in DEVICES and not (isinstance(d, dict) and "K" in d):
+            continue  # scalar provenance (rms_px, n_views, ...) beside the devices
         if not isinstance(d, dict):
             raise FootageError(f"{path}: field '{name}' must be a mapping")
         try:

@@ -18,10 +18,12 @@ rule calibrate_chessboard:
             category="Calibration",
         ),
     params:
-        out=f"{RESULTS}/calibration/chessboard",
+        out=get_out_dir,
         extra=HYDRA_EXTRA,
     log:
         f"{RESULTS}/logs/calibrate_chessboard.log",
+    conda:
+        CONDA_ENV
     resources:
         mem_mb=1000,
         runtime=10,
@@ -41,10 +43,12 @@ rule calibrate_scene:
         ),
         rrd=f"{RESULTS}/calibration/{{scene}}/calibrate.rrd",
     params:
-        out=f"{RESULTS}/calibration/{{scene}}",
+        out=get_out_dir,
         extra=HYDRA_EXTRA,
     log:
         f"{RESULTS}/logs/calibrate_{{scene}}.log",
+    conda:
+        CONDA_ENV
     resources:
         mem_mb=1500,
         runtime=10,

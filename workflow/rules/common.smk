@@ -20,3 +20,11 @@ def get_final_outputs(wildcards):
             out += [f"{RESULTS}/calibration/{s}/calibration.yaml", f"{RESULTS}/footage/{s}/meta.yaml",
                     f"{RESULTS}/footage/{s}/contact_sheet.png"]
     return out
+
+
+def get_out_dir(wildcards, output):
+    """The folder of a rule's first output: where its Hydra stage writes (paths.out)."""
+    return str(Path(output[0]).parent)
+
+
+CONDA_ENV = "../../env.yml"

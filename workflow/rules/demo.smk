@@ -16,10 +16,12 @@ rule reality_demo:
         ),
         rrd=f"{RESULTS}/footage/{{scene}}/reality.rrd",
     params:
-        out=f"{RESULTS}/footage/{{scene}}",
+        out=get_out_dir,
         extra=HYDRA_EXTRA,
     log:
         f"{RESULTS}/logs/reality_{{scene}}.log",
+    conda:
+        CONDA_ENV
     resources:
         mem_mb=1500,
         runtime=10,

@@ -1,0 +1,60 @@
+"""Stage ``calibrate_real``: calibrate OpenCV's real chessboard set and compare with OpenCV's reference.
+
+``python -m vidsim.cli.calibrate_real paths.footage=../shared/data/opencv_chessboard
+paths.out=results/calibration/chessboard``. Uses the left images (``left*.jpg|png``), 9x6 inner
+corners, 25 mm squares, ``CALIB_FIX_ASPECT_RATIO`` (as OpenCV's reference run), and writes
+``calibration.yaml`` (camera only: the set has no scene), ``summary.csv`` (ours vs reference)
+and ``reprojection.png`` (per-image RMS).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+from omegaconf import DictConfig
+
+from vidsim.cli._app import stage_app
+from vidsim.errors import FootageError
+from vidsim.io.atomic import write_text, write_yaml
+from vidsim.io.footage import read_image
+from vidsim.report.figures import plt, save_figure
+from vidsim.video.calibration import calibrate_chessboard
+
+# OpenCV's own reference calibration of this set (shared/data/README.md, left_intrinsics.yml)
+REFERENCE = {"rms_px": 0.3926, "fx": 535.9, "fy": 535.9, "cx": 342.3, "cy": 235.6}
+
+
+def run(cfg: DictConfig) -> None:
+    folder = Path(cfg.paths.footage)
+    if not folder.is_dir():
+        raise FootageError(f"{folder}: chessboard image folder is missing")
+    files = sorted(p for p in folder.iterdir() if p.name.startswith("left") and p.suffix.lower() in (".jpg", ".png"))
+    if not files:
+        raise FootageError(f"{folder}: no left*.jpg / left*.png images")
+    images = [cv2.cvtColor(read_image(p), cv2.COLOR_RGB2GRAY) for p in files]
+    res = calibrate_chessboard(images, (9, 6), 0.025, flags=cv2.CALIB_FIX_ASPECT_RATIO, image_names=[p.name for p in files])
+    out = Path(cfg.paths.out)
+    w, h = res.image_size
+    cam = {"width": w, "height": h, "K": res.K, "dist": res.dist, "R": np.eye(3), "t": np.zeros(3)}
+    write_yaml(out / "calibration.yaml", {"camera": cam})
+    ours = {"rms_px": res.rms, "fx": res.K[0, 0], "fy": res.K[1, 1], "cx": res.K[0, 2], "cy": res.K[1, 2]}
+    rows = ["quantity,vidsim,opencv_reference,difference"]
+    rows += [f"{k},{ours[k]:.4f},{REFERENCE[k]:.4f},{ours[k] - REFERENCE[k]:+.4f}" for k in REFERENCE]
+    rows += [f"views_used,{res.n_views},13,", f"views_rejected,{len(res.rejected)},,"]
+    write_text(out / "summary.csv", "\n".join(rows) + "\n")
+    fig, ax = plt.subplots(figsize=(7, 3))
+    ax.bar(range(res.n_views), res.per_view_rms, color="tab:blue")
+    ax.axhline(res.rms, color="k", ls="--", label=f"overall RMS {res.rms:.4f} px (OpenCV ref. 0.3926)")
+    ax.set_xticks(range(res.n_views), res.used, rotation=60, fontsize=7)
+    ax.set_ylabel("reprojection RMS [px]")
+    ax.legend(fontsize=8)
+    save_figure(fig, out / "reprojection.png")
+    print(f"calibrate_real: RMS {res.rms:.4f} px, fx {res.K[0, 0]:.2f}, cx {res.K[0, 2]:.2f}, cy {res.K[1, 2]:.2f} ({res.n_views} views)")
+
+
+main = stage_app("calibrate_real", run)
+
+if __name__ == "__main__":
+    main()
