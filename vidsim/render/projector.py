@@ -33,9 +33,17 @@ import numpy as np
 from numba import njit
 
 from vidsim.render.raster import DEFAULT_NEAR, RasterError, _check_cam, _check_mesh, _run, face_normals
-from vidsim.video.camera import PinholeCamera
+from vidsim.video.camera import PinholeCamera, distort_normalized
 
-__all__ = ["ProjectorError", "Projector", "shade_stripes", "render_stripes", "render_stripes_batch", "camera_rays"]
+__all__ = [
+    "ProjectorError",
+    "Projector",
+    "shade_stripes",
+    "render_stripes",
+    "render_stripes_batch",
+    "camera_rays",
+    "undistort_pixels",
+]
 
 
 class ProjectorError(ValueError):
@@ -98,6 +106,29 @@ class Projector:
 
 
 # --------------------------------------------------------------------------- geometry helpers
+def undistort_pixels(uv: np.ndarray, cam: PinholeCamera, P: np.ndarray | None = None) -> np.ndarray:
+    """Invert ``cam``'s lens distortion for pixels ``uv`` (N, 2).
+
+    Returns (N, 2) normalised ideal coordinates ``(x/z, y/z)``, or ideal pixels of the 3x3
+    matrix ``P`` when given. Iterative (OpenCV, 100 iterations); checked by re-distorting, and
+    :class:`ProjectorError` is raised when the inverse misses by more than 1e-3 px (distortion
+    too strong for the field of view).
+    """
+    pts = np.ascontiguousarray(np.asarray(uv, np.float64).reshape(-1, 1, 2))
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    xn = cv2.undistortPoints(pts, cam.K, cam.dist, R=None, P=None, criteria=crit).reshape(-1, 2)
+    xd, yd = distort_normalized(xn[:, 0], xn[:, 1], cam.dist)
+    back = np.stack([cam.K[0, 0] * xd + cam.K[0, 1] * yd + cam.K[0, 2], cam.K[1, 1] * yd + cam.K[1, 2]], 1)
+    err = np.abs(back - pts.reshape(-1, 2)).max() if len(back) else 0.0
+    if not np.isfinite(err) or err > 1e-3:
+        raise ProjectorError(f"camera field 'dist' {cam.dist.tolist()}: distortion cannot be inverted over the "
+                             f"image (re-projection error {err:.3g} px)")
+    if P is None:
+        return xn
+    P = np.asarray(P, float)
+    return np.stack([P[0, 0] * xn[:, 0] + P[0, 1] * xn[:, 1] + P[0, 2], P[1, 1] * xn[:, 1] + P[1, 2]], 1)
+
+
 def camera_rays(cam: PinholeCamera) -> np.ndarray:
     """(H, W, 2) normalised camera coordinates ``(x/z, y/z)`` of every pixel centre.
 
@@ -106,10 +137,8 @@ def camera_rays(cam: PinholeCamera) -> np.ndarray:
     """
     u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64))
     if np.any(cam.dist):
-        pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
-        und = cv2.undistortPointsIter(pts, cam.K, cam.dist, None, None,
-                                      (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10))
-        return und.reshape(cam.height, cam.width, 2).astype(np.float64)
+        und = undistort_pixels(np.stack([u.ravel(), v.ravel()], axis=1), cam)
+        return und.reshape(cam.height, cam.width, 2)
     Kinv = np.linalg.inv(cam.K)
     x = Kinv[0, 0] * u + Kinv[0, 1] * v + Kinv[0, 2]
     y = Kinv[1, 1] * v + Kinv[1, 2]

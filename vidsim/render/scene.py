@@ -44,7 +44,7 @@ if not hasattr(np, "infty"):  # pyrender 0.1.45 uses the alias removed in NumPy 
 
 import pyrender  # noqa: E402
 
-from vidsim.render.projector import Projector, shade_stripes  # noqa: E402
+from vidsim.render.projector import Projector, shade_stripes, undistort_pixels  # noqa: E402
 from vidsim.video.camera import PinholeCamera  # noqa: E402
 
 __all__ = [
@@ -211,11 +211,10 @@ def _canvas(cam: PinholeCamera) -> _Canvas:
     if not np.any(cam.dist):
         return _Canvas(cam)
     u, v = np.meshgrid(np.arange(cam.width, dtype=np.float64), np.arange(cam.height, dtype=np.float64))
-    pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
-    und = cv2.undistortPointsIter(pts, cam.K, cam.dist, None, cam.K,
-                                  (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)).reshape(-1, 2)
-    if not np.all(np.isfinite(und)):
-        raise SceneError("camera field 'dist': undistortion of the image grid did not converge")
+    try:
+        und = undistort_pixels(np.stack([u.ravel(), v.ravel()], axis=1), cam, P=cam.K)
+    except ValueError as e:
+        raise SceneError(str(e)) from e
     lo = np.floor(und.min(axis=0)) - 2
     hi = np.ceil(und.max(axis=0)) + 2
     lo = np.minimum(lo, 0)
@@ -268,22 +267,28 @@ def _pyrender_mesh(item: MeshItem, normal_code: bool = False) -> pyrender.Mesh:
         P, N, I, ids = item.vertices, _vertex_normals(item.vertices, item.faces), item.faces, np.arange(len(item.vertices))
     else:
         P, N, I, ids = _flat_geometry(item)
+    # pyrender culls back faces in its segmentation / depth passes whatever the material says,
+    # so every triangle is emitted twice (both windings, opposite normals) with culling on:
+    # exactly the copy facing the camera is drawn, with its normal towards the camera.
+    I = np.vstack([I, I[:, ::-1] + len(P)])
+    P, N, ids = np.vstack([P, P]), np.vstack([N, -N]), np.concatenate([ids, ids])
     kw: dict = {}
     if normal_code:
         kw["color_0"] = np.hstack([(N + 1.0) / 2.0, np.ones((len(N), 1))])
-        mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0), doubleSided=True)
+        mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=(1.0, 1.0, 1.0, 1.0), doubleSided=False)
     else:
         base = (1.0, 1.0, 1.0, 1.0)
         tex = None
         if item.texture is not None:
-            kw["texcoord_0"] = item.uv[ids]
+            uv = item.uv[ids]
+            kw["texcoord_0"] = np.column_stack([uv[:, 0], 1.0 - uv[:, 1]])  # pyrender flips images: v up
             tex = pyrender.Texture(source=item.texture, source_channels="RGB")
         elif item.vertex_colors is not None:
             kw["color_0"] = np.hstack([item.vertex_colors[ids], np.ones((len(ids), 1))])
         else:
             base = (*item.color, 1.0)
         mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=base, baseColorTexture=tex, metallicFactor=0.0,
-                                                 roughnessFactor=1.0, doubleSided=True)
+                                                 roughnessFactor=1.0, doubleSided=False)
     prim = pyrender.Primitive(positions=P.astype(np.float32), normals=N.astype(np.float32), indices=I,
                               material=mat, **kw)
     return pyrender.Mesh([prim], name=item.name)
