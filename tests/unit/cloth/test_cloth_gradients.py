@@ -1,0 +1,141 @@
+"""Every force against finite differences of its energy (or dissipation potential)."""
+
+import numpy as np
+import pytest
+
+from vidsim.cloth import Colliders, swatch
+from vidsim.cloth.collision import build_self_pairs, collider_forces, self_collision_forces
+from vidsim.cloth.forces import (
+    bend_forces,
+    drag_dissipation_potential,
+    drag_forces,
+    gravity_forces,
+    stretch_shear_forces,
+)
+
+
+def _fd_grad(fun, x, h=1e-7):
+    g = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for d in range(3):
+            xp = x.copy()
+            xm = x.copy()
+            xp[i, d] += h
+            xm[i, d] -= h
+            g[i, d] = (fun(xp) - fun(xm)) / (2 * h)
+    return g
+
+
+@pytest.fixture
+def bent(rng):
+    m = swatch(5, 5, 0.1, 0.1)
+    x = m.rest_positions + 0.004 * rng.standard_normal(m.rest_positions.shape)
+    x[:, 2] *= 1.1  # stretch along v as well
+    v = rng.standard_normal(x.shape)
+    return m, x, v
+
+
+def _check(force, grad, scale):
+    err = np.max(np.abs(force + grad))
+    assert np.max(np.abs(grad)) > 1e-3 * scale, "test configuration exerts no force"
+    assert err < 1e-5 * np.max(np.abs(grad)), err
+
+
+@pytest.mark.parametrize("which", ["stretch", "shear"])
+def test_stretch_shear_force_is_minus_energy_gradient(bent, which):
+    m, x, _ = bent
+    z = np.zeros_like(x)
+    ks, ksh = (300.0, 0.0) if which == "stretch" else (0.0, 40.0)
+
+    def energy(xx):
+        f = np.zeros_like(xx)
+        a, b = stretch_shear_forces(xx, z, m.triangles, m.tri_coef, m.tri_area, ks, ksh, 0.0, 0.0, f)
+        return a + b
+
+    f = np.zeros_like(x)
+    stretch_shear_forces(x, z, m.triangles, m.tri_coef, m.tri_area, ks, ksh, 0.0, 0.0, f)
+    _check(f, _fd_grad(energy, x), 1.0)
+
+
+def test_bend_force_is_minus_energy_gradient(bent):
+    m, x, _ = bent
+    z = np.zeros_like(x)
+
+    def energy(xx):
+        return bend_forces(xx, z, m.bend_edges, m.bend_coef, m.bend_rest, 2e-5, 0.0, np.zeros_like(xx))
+
+    f = np.zeros_like(x)
+    bend_forces(x, z, m.bend_edges, m.bend_coef, m.bend_rest, 2e-5, 0.0, f)
+    _check(f, _fd_grad(energy, x), 1e-3)
+
+
+def test_damping_forces_are_minus_rayleigh_gradient(bent):
+    """d = -kd dC/dx Cdot is -dR/dv with R = kd/2 Cdot^2 = 1/2 v.D.v, so v.f = -2R."""
+    m, x, v = bent
+
+    def dforce(vv):
+        f = np.zeros_like(x)
+        stretch_shear_forces(x, vv, m.triangles, m.tri_coef, m.tri_area, 0.0, 0.0, 0.02, 0.03, f)
+        bend_forces(x, vv, m.bend_edges, m.bend_coef, m.bend_rest, 0.0, 1e-7, f)
+        return f
+
+    def rayleigh(vv):
+        return -0.5 * np.sum(vv * dforce(vv))
+
+    f = dforce(v)
+    g = _fd_grad(rayleigh, v, h=1e-5)
+    _check(f, g, 1e-3)
+    # dissipative: power is negative for any velocity
+    assert np.sum(v * f) < 0
+
+
+def test_drag_is_minus_dissipation_potential_gradient(bent, rng):
+    m, x, v = bent
+    wind = np.array([0.3, -0.2, 0.1])
+    f = np.zeros_like(x)
+    drag_forces(x, v, m.triangles, 0.7, 1.3, 0.4, wind, f)
+    g = _fd_grad(lambda vv: drag_dissipation_potential(x, vv, m.triangles, 0.7, 1.3, 0.4, wind), v, h=1e-6)
+    _check(f, g, 1e-3)
+
+
+def test_gravity_and_collider_forces_are_minus_energy_gradient(rng):
+    m = swatch(6, 6, 0.1, 0.1, origin=(-0.05, -0.05, 0.0), axis_u=(1, 0, 0), axis_v=(0, 1, 0))
+    x = m.rest_positions + 0.001 * rng.standard_normal(m.rest_positions.shape)
+    cols = Colliders.static(spheres=[((0.0, 0.0, -0.05), 0.048)],
+                            capsules=[((-0.1, 0.02, -0.02), (0.1, 0.02, -0.02), 0.018)])
+    args = (cols.times, cols.sphere_centers, cols.sphere_radii, cols.capsule_a, cols.capsule_b, cols.capsule_radii)
+    mass = m.masses(0.2)
+    g = np.array([0.0, 3.0, -9.81])
+
+    def energy(xx):
+        f = np.zeros_like(xx)
+        return gravity_forces(xx, mass, g, f) + collider_forces(0.0, xx, m.vertex_area, *args, 2e5, 0.004, f)
+
+    f = np.zeros_like(x)
+    e_col = collider_forces(0.0, x, m.vertex_area, *args, 2e5, 0.004, f)
+    assert e_col > 0, "no vertex in contact"
+    gravity_forces(x, mass, g, f)
+    _check(f, _fd_grad(energy, x, h=1e-8), 1e-3)
+
+
+def test_self_collision_force_is_minus_energy_gradient(rng):
+    m = swatch(6, 6, 0.1, 0.1, axis_u=(1, 0, 0), axis_v=(0, 1, 0))
+    n = m.n_vertices
+    # fold: a second layer 2 mm above the first, slightly shifted
+    x = m.rest_positions.copy()
+    upper = np.arange(n) % 6 >= 3
+    x[upper, 0] = 0.1 - x[upper, 0] + 0.004
+    x[upper, 2] += 0.002
+    x += 0.0003 * rng.standard_normal(x.shape)
+    h, k = 0.003, 1e5
+    pairs = build_self_pairs(x, m.triangles, 3 * h, 0.02)
+
+    def energy(xx):
+        return self_collision_forces(xx, m.triangles, m.vertex_area, pairs, k, h, np.zeros_like(xx))
+
+    f = np.zeros_like(x)
+    assert energy(x) > 0
+    self_collision_forces(x, m.triangles, m.vertex_area, pairs, k, h, f)
+    _check(f, _fd_grad(energy, x, h=1e-9), 1e-3)
+    # equal and opposite: no net force
+    assert np.allclose(f.sum(axis=0), 0.0, atol=1e-12 * np.abs(f).max() * n)

@@ -1,0 +1,344 @@
+"""Cloth forces (Numba kernels): Baraff-Witkin stretch/shear/bend, damping, drag, gravity.
+
+Every kernel *adds* its forces into ``f`` (N, 3) [N] and returns its energy [J] (for the
+conservative forces) so that gradients can be checked against finite differences.
+
+Conditions (seed eq. 8-10, Baraff & Witkin 1998), with energies linear in rest area a:
+
+* stretch: C_u = sqrt(a) (|w_u| - 1), C_v = sqrt(a) (|w_v| - 1);  E = k_s/2 (C_u^2 + C_v^2)
+* shear:   C = sqrt(a) w_u . w_v;                                E = k_sh/2 C^2
+* bend:    C = sqrt(c_e) (theta - theta_0), c_e = |e|^2/(A_1+A_2); E = k_b/2 C^2
+
+where w_u, w_v are the deformation gradient columns (d x / d u, d x / d v) and theta is
+the dihedral angle across an interior edge. Damping per condition is
+d = -k_d (dC/dx) dC/dt. Drag per triangle (seed section 4.2):
+f = -a (k_N |v_N|^2 / (1 + k_f |v_N|^2) v_N/|v_N| + k_T v_T), with v the face's mean
+velocity relative to the air (``wind``), split into normal and tangential parts, shared
+equally by the three corners.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = [
+    "stretch_shear_forces",
+    "bend_forces",
+    "drag_forces",
+    "gravity_forces",
+    "dihedral_angles",
+    "drag_dissipation_potential",
+]
+
+
+@njit(cache=True, fastmath=True)
+def stretch_shear_forces(
+    x: np.ndarray,
+    v: np.ndarray,
+    tris: np.ndarray,
+    coef: np.ndarray,
+    area: np.ndarray,
+    k_stretch: float,
+    k_shear: float,
+    kd_stretch: float,
+    kd_shear: float,
+    f: np.ndarray,
+) -> tuple[float, float]:
+    """Add Baraff-Witkin stretch and shear forces (elastic + damping) to ``f``.
+
+    Args:
+        x: (N, 3) positions [m]. v: (N, 3) velocities [m/s].
+        tris: (M, 3) int. coef: (M, 6) dw_u/dx_{ijk}, dw_v/dx_{ijk} [1/m].
+        area: (M,) rest areas [m^2].
+        k_stretch, k_shear: [N/m]. kd_stretch, kd_shear: [N s/m].
+        f: (N, 3) force accumulator [N], modified in place.
+
+    Returns:
+        (stretch energy, shear energy) [J].
+    """
+    e_st = 0.0
+    e_sh = 0.0
+    for t in range(tris.shape[0]):
+        i = tris[t, 0]
+        j = tris[t, 1]
+        k = tris[t, 2]
+        ai = coef[t, 0]
+        aj = coef[t, 1]
+        ak = coef[t, 2]
+        bi = coef[t, 3]
+        bj = coef[t, 4]
+        bk = coef[t, 5]
+        A = area[t]
+        wu0 = ai * x[i, 0] + aj * x[j, 0] + ak * x[k, 0]
+        wu1 = ai * x[i, 1] + aj * x[j, 1] + ak * x[k, 1]
+        wu2 = ai * x[i, 2] + aj * x[j, 2] + ak * x[k, 2]
+        wv0 = bi * x[i, 0] + bj * x[j, 0] + bk * x[k, 0]
+        wv1 = bi * x[i, 1] + bj * x[j, 1] + bk * x[k, 1]
+        wv2 = bi * x[i, 2] + bj * x[j, 2] + bk * x[k, 2]
+        du0 = ai * v[i, 0] + aj * v[j, 0] + ak * v[k, 0]
+        du1 = ai * v[i, 1] + aj * v[j, 1] + ak * v[k, 1]
+        du2 = ai * v[i, 2] + aj * v[j, 2] + ak * v[k, 2]
+        dv0 = bi * v[i, 0] + bj * v[j, 0] + bk * v[k, 0]
+        dv1 = bi * v[i, 1] + bj * v[j, 1] + bk * v[k, 1]
+        dv2 = bi * v[i, 2] + bj * v[j, 2] + bk * v[k, 2]
+        lu = math.sqrt(wu0 * wu0 + wu1 * wu1 + wu2 * wu2)
+        lv = math.sqrt(wv0 * wv0 + wv1 * wv1 + wv2 * wv2)
+        if lu < 1e-12 or lv < 1e-12:
+            continue
+        iu = 1.0 / lu
+        iv = 1.0 / lv
+        cu = lu - 1.0
+        cv = lv - 1.0
+        cud = (wu0 * du0 + wu1 * du1 + wu2 * du2) * iu
+        cvd = (wv0 * dv0 + wv1 * dv1 + wv2 * dv2) * iv
+        e_st += 0.5 * k_stretch * A * (cu * cu + cv * cv)
+        su = A * (k_stretch * cu + kd_stretch * cud) * iu  # times w_u (not unit) below
+        sv = A * (k_stretch * cv + kd_stretch * cvd) * iv
+        csh = wu0 * wv0 + wu1 * wv1 + wu2 * wv2
+        cshd = du0 * wv0 + du1 * wv1 + du2 * wv2 + wu0 * dv0 + wu1 * dv1 + wu2 * dv2
+        e_sh += 0.5 * k_shear * A * csh * csh
+        ss = A * (k_shear * csh + kd_shear * cshd)
+        # dE/dx_m = su * a_m * w_u + sv * b_m * w_v + ss * (a_m * w_v + b_m * w_u)
+        gu = su
+        gv = sv
+        # vector terms: P = gu*w_u + ss*w_v (multiplies a_m), Q = gv*w_v + ss*w_u (multiplies b_m)
+        p0 = gu * wu0 + ss * wv0
+        p1 = gu * wu1 + ss * wv1
+        p2 = gu * wu2 + ss * wv2
+        q0 = gv * wv0 + ss * wu0
+        q1 = gv * wv1 + ss * wu1
+        q2 = gv * wv2 + ss * wu2
+        f[i, 0] -= ai * p0 + bi * q0
+        f[i, 1] -= ai * p1 + bi * q1
+        f[i, 2] -= ai * p2 + bi * q2
+        f[j, 0] -= aj * p0 + bj * q0
+        f[j, 1] -= aj * p1 + bj * q1
+        f[j, 2] -= aj * p2 + bj * q2
+        f[k, 0] -= ak * p0 + bk * q0
+        f[k, 1] -= ak * p1 + bk * q1
+        f[k, 2] -= ak * p2 + bk * q2
+    return e_st, e_sh
+
+
+@njit(cache=True, fastmath=True)
+def bend_forces(
+    x: np.ndarray,
+    v: np.ndarray,
+    edges: np.ndarray,
+    bcoef: np.ndarray,
+    brest: np.ndarray,
+    k_bend: float,
+    kd_bend: float,
+    f: np.ndarray,
+) -> float:
+    """Add dihedral-angle bending forces (elastic + damping) to ``f``.
+
+    Args:
+        x, v: (N, 3) positions [m] and velocities [m/s].
+        edges: (E, 4) int (x0, x1, x2, x3), see :class:`~vidsim.cloth.mesh.ClothMesh`.
+        bcoef: (E,) |e|^2/(A1+A2) at rest. brest: (E,) rest angles [rad].
+        k_bend: bending rigidity [N m]. kd_bend: [N m s].
+        f: (N, 3) accumulator [N].
+
+    Returns:
+        Bending energy [J].
+    """
+    energy = 0.0
+    for q in range(edges.shape[0]):
+        i0 = edges[q, 0]
+        i1 = edges[q, 1]
+        i2 = edges[q, 2]
+        i3 = edges[q, 3]
+        e0 = x[i1, 0] - x[i0, 0]
+        e1 = x[i1, 1] - x[i0, 1]
+        e2 = x[i1, 2] - x[i0, 2]
+        a0 = x[i2, 0] - x[i0, 0]
+        a1 = x[i2, 1] - x[i0, 1]
+        a2 = x[i2, 2] - x[i0, 2]
+        b0 = x[i3, 0] - x[i1, 0]
+        b1 = x[i3, 1] - x[i1, 1]
+        b2 = x[i3, 2] - x[i1, 2]
+        # n1 = e x a ; n2 = (-e) x b
+        n10 = e1 * a2 - e2 * a1
+        n11 = e2 * a0 - e0 * a2
+        n12 = e0 * a1 - e1 * a0
+        n20 = -(e1 * b2 - e2 * b1)
+        n21 = -(e2 * b0 - e0 * b2)
+        n22 = -(e0 * b1 - e1 * b0)
+        el2 = e0 * e0 + e1 * e1 + e2 * e2
+        nn1 = n10 * n10 + n11 * n11 + n12 * n12
+        nn2 = n20 * n20 + n21 * n21 + n22 * n22
+        if el2 < 1e-24 or nn1 < 1e-30 or nn2 < 1e-30:
+            continue
+        el = math.sqrt(el2)
+        c0 = n11 * n22 - n12 * n21
+        c1 = n12 * n20 - n10 * n22
+        c2 = n10 * n21 - n11 * n20
+        sn = (c0 * e0 + c1 * e1 + c2 * e2) / el
+        cs = n10 * n20 + n11 * n21 + n12 * n22
+        theta = math.atan2(sn, cs)
+        # gradient of theta
+        inv1 = 1.0 / nn1
+        inv2 = 1.0 / nn2
+        m10 = n10 * inv1
+        m11 = n11 * inv1
+        m12 = n12 * inv1
+        m20 = n20 * inv2
+        m21 = n21 * inv2
+        m22 = n22 * inv2
+        ie = 1.0 / el
+        # projections on the unit edge
+        d20 = (a0 * e0 + a1 * e1 + a2 * e2) * ie  # (x2-x0).e^
+        d21 = el - d20  # (x1-x2).e^
+        d30 = (b0 * e0 + b1 * e1 + b2 * e2) * ie + el  # (x3-x0).e^
+        d31 = el - d30  # (x1-x3).e^
+        g20 = -el * m10
+        g21 = -el * m11
+        g22 = -el * m12
+        g30 = -el * m20
+        g31 = -el * m21
+        g32 = -el * m22
+        g00 = d21 * m10 + d31 * m20
+        g01 = d21 * m11 + d31 * m21
+        g02 = d21 * m12 + d31 * m22
+        g10 = d20 * m10 + d30 * m20
+        g11 = d20 * m11 + d30 * m21
+        g12 = d20 * m12 + d30 * m22
+        thd = (
+            g00 * v[i0, 0] + g01 * v[i0, 1] + g02 * v[i0, 2]
+            + g10 * v[i1, 0] + g11 * v[i1, 1] + g12 * v[i1, 2]
+            + g20 * v[i2, 0] + g21 * v[i2, 1] + g22 * v[i2, 2]
+            + g30 * v[i3, 0] + g31 * v[i3, 1] + g32 * v[i3, 2]
+        )
+        dth = theta - brest[q]
+        c = bcoef[q]
+        energy += 0.5 * k_bend * c * dth * dth
+        s = c * (k_bend * dth + kd_bend * thd)
+        f[i0, 0] -= s * g00
+        f[i0, 1] -= s * g01
+        f[i0, 2] -= s * g02
+        f[i1, 0] -= s * g10
+        f[i1, 1] -= s * g11
+        f[i1, 2] -= s * g12
+        f[i2, 0] -= s * g20
+        f[i2, 1] -= s * g21
+        f[i2, 2] -= s * g22
+        f[i3, 0] -= s * g30
+        f[i3, 1] -= s * g31
+        f[i3, 2] -= s * g32
+    return energy
+
+
+@njit(cache=True, fastmath=True)
+def drag_forces(
+    x: np.ndarray,
+    v: np.ndarray,
+    tris: np.ndarray,
+    k_t: float,
+    k_n: float,
+    k_f: float,
+    wind: np.ndarray,
+    f: np.ndarray,
+) -> None:
+    """Add the seed's nonlinear air drag per triangle (current area) to ``f``.
+
+    Args:
+        x, v: (N, 3) [m], [m/s]. tris: (M, 3) int.
+        k_t: tangential linear drag [N s/m^3]. k_n: normal quadratic drag [kg/m^3].
+        k_f: degradation [s^2/m^2]. wind: (3,) air velocity [m/s] (uniform).
+        f: (N, 3) accumulator [N].
+    """
+    if k_t == 0.0 and k_n == 0.0:
+        return
+    third = 1.0 / 3.0
+    for t in range(tris.shape[0]):
+        i = tris[t, 0]
+        j = tris[t, 1]
+        k = tris[t, 2]
+        p0 = x[j, 0] - x[i, 0]
+        p1 = x[j, 1] - x[i, 1]
+        p2 = x[j, 2] - x[i, 2]
+        q0 = x[k, 0] - x[i, 0]
+        q1 = x[k, 1] - x[i, 1]
+        q2 = x[k, 2] - x[i, 2]
+        n0 = p1 * q2 - p2 * q1
+        n1 = p2 * q0 - p0 * q2
+        n2 = p0 * q1 - p1 * q0
+        nl = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        if nl < 1e-30:
+            continue
+        A = 0.5 * nl
+        n0 /= nl
+        n1 /= nl
+        n2 /= nl
+        r0 = (v[i, 0] + v[j, 0] + v[k, 0]) * third - wind[0]
+        r1 = (v[i, 1] + v[j, 1] + v[k, 1]) * third - wind[1]
+        r2 = (v[i, 2] + v[j, 2] + v[k, 2]) * third - wind[2]
+        vn = r0 * n0 + r1 * n1 + r2 * n2
+        t0 = r0 - vn * n0
+        t1 = r1 - vn * n1
+        t2 = r2 - vn * n2
+        # kN |vN|^2/(1+kf|vN|^2) * vN/|vN| = kN |vn| vn/(1+kf vn^2) * n
+        fn = k_n * abs(vn) * vn / (1.0 + k_f * vn * vn)
+        s = -A * third
+        f0 = s * (fn * n0 + k_t * t0)
+        f1 = s * (fn * n1 + k_t * t1)
+        f2 = s * (fn * n2 + k_t * t2)
+        f[i, 0] += f0
+        f[i, 1] += f1
+        f[i, 2] += f2
+        f[j, 0] += f0
+        f[j, 1] += f1
+        f[j, 2] += f2
+        f[k, 0] += f0
+        f[k, 1] += f1
+        f[k, 2] += f2
+
+
+@njit(cache=True)
+def gravity_forces(x: np.ndarray, mass: np.ndarray, g: np.ndarray, f: np.ndarray) -> float:
+    """Add m g to ``f``; return the gravitational potential energy -sum m g.x [J]."""
+    e = 0.0
+    for i in range(x.shape[0]):
+        f[i, 0] += mass[i] * g[0]
+        f[i, 1] += mass[i] * g[1]
+        f[i, 2] += mass[i] * g[2]
+        e -= mass[i] * (g[0] * x[i, 0] + g[1] * x[i, 1] + g[2] * x[i, 2])
+    return e
+
+
+def dihedral_angles(x: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Dihedral angles [rad], shape (E,), same convention as :func:`bend_forces`."""
+    x0, x1, x2, x3 = (x[edges[:, c]] for c in range(4))
+    e = x1 - x0
+    n1 = np.cross(e, x2 - x0)
+    n2 = np.cross(-e, x3 - x1)
+    en = e / np.linalg.norm(e, axis=1, keepdims=True)
+    return np.arctan2(np.einsum("ij,ij->i", np.cross(n1, n2), en), np.einsum("ij,ij->i", n1, n2))
+
+
+def drag_dissipation_potential(
+    x: np.ndarray, v: np.ndarray, tris: np.ndarray, k_t: float, k_n: float, k_f: float, wind: np.ndarray
+) -> float:
+    """Dissipation potential Phi(v) [W] whose negative velocity gradient is the drag force.
+
+    Phi = sum_t a_t (k_T/2 |v_T|^2 + k_N * I(|v_N|)), I(s) = int_0^s r^2/(1 + k_f r^2) dr,
+    at fixed positions. Used to check :func:`drag_forces` by finite differences.
+    """
+    P = x[tris]
+    n = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    nl = np.linalg.norm(n, axis=1)
+    A = 0.5 * nl
+    nh = n / nl[:, None]
+    r = v[tris].mean(axis=1) - wind[None, :]
+    vn = np.einsum("ij,ij->i", r, nh)
+    vt = r - vn[:, None] * nh
+    s = np.abs(vn)
+    if k_f > 0:
+        integ = s / k_f - np.arctan(math.sqrt(k_f) * s) / k_f**1.5
+    else:
+        integ = s**3 / 3.0
+    return float(np.sum(A * (0.5 * k_t * np.einsum("ij,ij->i", vt, vt) + k_n * integ)))

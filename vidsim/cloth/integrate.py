@@ -1,0 +1,390 @@
+"""Numba time integrators for the cloth model (internal; use :func:`vidsim.cloth.simulate`).
+
+* ``_rk45_loop``: Dormand-Prince 5(4) with embedded error control and a PI step-size
+  controller (the seed's adaptive explicit Runge-Kutta), the reference scheme.
+* ``_symplectic_loop``: semi-implicit (symplectic) Euler at a fixed sub-step chosen from
+  the stiffest mode (velocity update first, then positions with the new velocity). It is
+  symplectic, so it adds no artificial damping to undamped oscillations; its only cost is
+  the stability limit h < 2/omega_max.
+
+Both call ``_accel`` which evaluates all forces at (t, x, v). Driven vertices take the
+driver's position/velocity at every evaluation and the driver's acceleration as their
+derivative. Status codes: 0 ok, 1 non-finite state, 2 speed above the blow-up limit,
+3 step size collapse, 4 step budget exhausted.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from vidsim.cloth.collision import build_self_pairs, collider_forces, self_collision_forces
+from vidsim.cloth.forces import bend_forces, drag_forces, gravity_forces, stretch_shear_forces
+
+STATUS_TEXT = {
+    0: None,
+    1: "non-finite state (NaN/inf)",
+    2: "energy blow-up (a vertex exceeded the speed limit)",
+    3: "step size collapse (adaptive step below its minimum)",
+    4: "step budget exhausted",
+}
+
+# parameter vector layout
+P_BEND, P_STRETCH, P_SHEAR, P_KDB, P_KDS, P_KDSH, P_KT, P_KN, P_KF = range(9)
+P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL = range(9, 15)
+N_P = 15
+
+
+@njit(cache=True)
+def driver_state(
+    t: float, dtimes: np.ndarray, dpos: np.ndarray, dvel: np.ndarray, out_p: np.ndarray, out_v: np.ndarray, out_a: np.ndarray
+) -> None:
+    """Cubic Hermite interpolation of the driven vertices at time t [s].
+
+    Args:
+        dtimes: (K,) [s]. dpos, dvel: (K, D, 3) [m], [m/s].
+        out_p, out_v, out_a: (D, 3) outputs [m], [m/s], [m/s^2].
+    """
+    K = dtimes.shape[0]
+    D = dpos.shape[1]
+    if K == 1 or t <= dtimes[0] or t >= dtimes[K - 1]:
+        idx = 0 if (K == 1 or t <= dtimes[0]) else K - 1
+        for d in range(D):
+            for c in range(3):
+                out_p[d, c] = dpos[idx, d, c]
+                out_v[d, c] = dvel[idx, d, c] if K > 1 else 0.0
+                out_a[d, c] = 0.0
+        return
+    lo = 0
+    hi = K - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if dtimes[mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    h = dtimes[hi] - dtimes[lo]
+    s = (t - dtimes[lo]) / h
+    s2 = s * s
+    s3 = s2 * s
+    h00 = 2 * s3 - 3 * s2 + 1
+    h10 = s3 - 2 * s2 + s
+    h01 = -2 * s3 + 3 * s2
+    h11 = s3 - s2
+    d00 = (6 * s2 - 6 * s) / h
+    d10 = 3 * s2 - 4 * s + 1
+    d01 = (-6 * s2 + 6 * s) / h
+    d11 = 3 * s2 - 2 * s
+    a00 = (12 * s - 6) / (h * h)
+    a10 = (6 * s - 4) / h
+    a01 = (-12 * s + 6) / (h * h)
+    a11 = (6 * s - 2) / h
+    for d in range(D):
+        for c in range(3):
+            p0 = dpos[lo, d, c]
+            p1 = dpos[hi, d, c]
+            m0 = dvel[lo, d, c]
+            m1 = dvel[hi, d, c]
+            out_p[d, c] = h00 * p0 + h10 * h * m0 + h01 * p1 + h11 * h * m1
+            out_v[d, c] = d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1
+            out_a[d, c] = a00 * p0 + a10 * m0 + a01 * p1 + a11 * m1
+
+
+@njit(cache=True)
+def _accel(
+    t: float,
+    x: np.ndarray,
+    v: np.ndarray,
+    acc: np.ndarray,
+    f: np.ndarray,
+    model: tuple,
+    P: np.ndarray,
+    drv: tuple,
+    dwork: np.ndarray,
+    col: tuple,
+    pairs: np.ndarray,
+    xref: np.ndarray,
+) -> np.ndarray:
+    """Accelerations at (t, x, v) into ``acc``; driven rows of x, v are overwritten.
+
+    Returns the (possibly rebuilt) self-collision candidate pairs.
+    """
+    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind = model
+    didx, dtimes, dpos, dvel = drv
+    ctimes, sc, sr, ca, cb, cr = col
+    D = didx.shape[0]
+    if D > 0:
+        driver_state(t, dtimes, dpos, dvel, dwork[0], dwork[1], dwork[2])
+        for d in range(D):
+            i = didx[d]
+            for c in range(3):
+                x[i, c] = dwork[0, d, c]
+                v[i, c] = dwork[1, d, c]
+    f[:] = 0.0
+    stretch_shear_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_SHEAR], P[P_KDS], P[P_KDSH], f)
+    bend_forces(x, v, edges, bcoef, brest, P[P_BEND], P[P_KDB], f)
+    drag_forces(x, v, tris, P[P_KT], P[P_KN], P[P_KF], wind, f)
+    gravity_forces(x, mass, g, f)
+    collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
+    if P[P_SELFON] > 0:
+        h = P[P_SELFH]
+        # Verlet-list validity: rebuild when any vertex moved more than h/2
+        lim = 0.25 * h * h
+        rebuild = pairs.shape[0] == 1 and pairs[0, 0] < 0
+        if not rebuild:
+            for i in range(x.shape[0]):
+                d0 = x[i, 0] - xref[i, 0]
+                d1 = x[i, 1] - xref[i, 1]
+                d2 = x[i, 2] - xref[i, 2]
+                if d0 * d0 + d1 * d1 + d2 * d2 > lim:
+                    rebuild = True
+                    break
+        if rebuild:
+            pairs = build_self_pairs(x, tris, 2.0 * h, P[P_CELL])
+            xref[:] = x
+            if pairs.shape[0] == 0:
+                pairs = np.zeros((0, 2), dtype=np.int64)
+        self_collision_forces(x, tris, vert_area, pairs, P[P_SELFK], h, f)
+    N = x.shape[0]
+    for i in range(N):
+        im = 1.0 / mass[i]
+        acc[i, 0] = f[i, 0] * im
+        acc[i, 1] = f[i, 1] * im
+        acc[i, 2] = f[i, 2] * im
+    for d in range(D):
+        i = didx[d]
+        for c in range(3):
+            acc[i, c] = dwork[2, d, c]
+    return pairs
+
+
+@njit(cache=True)
+def _check(x: np.ndarray, v: np.ndarray, vmax: float) -> int:
+    v2max = vmax * vmax
+    for i in range(x.shape[0]):
+        s = 0.0
+        for c in range(3):
+            if not (math.isfinite(x[i, c]) and math.isfinite(v[i, c])):
+                return 1
+            s += v[i, c] * v[i, c]
+        if s > v2max:
+            return 2
+    return 0
+
+
+@njit(cache=True)
+def _set_driven(t: float, x: np.ndarray, v: np.ndarray, drv: tuple, dwork: np.ndarray) -> None:
+    didx, dtimes, dpos, dvel = drv
+    if didx.shape[0] == 0:
+        return
+    driver_state(t, dtimes, dpos, dvel, dwork[0], dwork[1], dwork[2])
+    for d in range(didx.shape[0]):
+        for c in range(3):
+            x[didx[d], c] = dwork[0, d, c]
+            v[didx[d], c] = dwork[1, d, c]
+
+
+_DP_C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
+_DP_A = np.zeros((7, 7))
+_DP_A[1, 0] = 1 / 5
+_DP_A[2, :2] = [3 / 40, 9 / 40]
+_DP_A[3, :3] = [44 / 45, -56 / 15, 32 / 9]
+_DP_A[4, :4] = [19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729]
+_DP_A[5, :5] = [9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656]
+_DP_A[6, :6] = [35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84]
+_DP_E = np.array([71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
+
+
+@njit(cache=True)
+def _rk45_loop(
+    t0: float,
+    x0: np.ndarray,
+    v0: np.ndarray,
+    frame_times: np.ndarray,
+    model: tuple,
+    P: np.ndarray,
+    drv: tuple,
+    col: tuple,
+    free: np.ndarray,
+    rtol: float,
+    atol_x: float,
+    atol_v: float,
+    h_init: float,
+    h_min: float,
+    max_steps: int,
+    vmax: float,
+    A: np.ndarray,
+    C: np.ndarray,
+    E: np.ndarray,
+) -> tuple:
+    N = x0.shape[0]
+    T = frame_times.shape[0]
+    out = np.full((T, N, 3), np.nan)
+    outv = np.full((T, N, 3), np.nan)
+    D = drv[0].shape[0]
+    dwork = np.zeros((3, max(D, 1), 3))
+    x = x0.copy()
+    v = v0.copy()
+    KX = np.zeros((7, N, 3))
+    KV = np.zeros((7, N, 3))
+    xs = np.zeros((N, 3))
+    vs = np.zeros((N, 3))
+    f = np.zeros((N, 3))
+    xref = x.copy()
+    pairs = -np.ones((1, 2), dtype=np.int64)
+    t = t0
+    _set_driven(t, x, v, drv, dwork)
+    xs[:] = x
+    vs[:] = v
+    pairs = _accel(t, xs, vs, KV[0], f, model, P, drv, dwork, col, pairs, xref)
+    KX[0] = vs
+    h = h_init
+    steps = 0
+    rejected = 0
+    nevals = 1
+    status = 0
+    err_prev = 1.0
+    nfree = 0
+    for i in range(N):
+        if free[i]:
+            nfree += 1
+    fi = 0
+    while fi < T and frame_times[fi] <= t0 + 1e-12:
+        out[fi] = x
+        outv[fi] = v
+        fi += 1
+    while fi < T:
+        target = frame_times[fi]
+        while t < target - 1e-12:
+            if steps + rejected >= max_steps:
+                status = 4
+                break
+            hs = min(h, target - t)
+            last = hs >= target - t - 1e-12
+            for s in range(1, 7):
+                xs[:] = x
+                vs[:] = v
+                for j in range(s):
+                    a = A[s, j]
+                    if a != 0.0:
+                        for i in range(N):
+                            for c in range(3):
+                                xs[i, c] += hs * a * KX[j, i, c]
+                                vs[i, c] += hs * a * KV[j, i, c]
+                pairs = _accel(t + C[s] * hs, xs, vs, KV[s], f, model, P, drv, dwork, col, pairs, xref)
+                KX[s] = vs
+            nevals += 6
+            # stage 6 state is the 5th-order solution (FSAL); error estimate
+            acc = 0.0
+            for i in range(N):
+                if not free[i]:
+                    continue
+                for c in range(3):
+                    ex = 0.0
+                    ev = 0.0
+                    for j in range(7):
+                        ex += E[j] * KX[j, i, c]
+                        ev += E[j] * KV[j, i, c]
+                    ex *= hs
+                    ev *= hs
+                    sx = atol_x + rtol * max(abs(x[i, c]), abs(xs[i, c]))
+                    sv = atol_v + rtol * max(abs(v[i, c]), abs(vs[i, c]))
+                    acc += (ex / sx) ** 2 + (ev / sv) ** 2
+            err = math.sqrt(acc / max(1, 6 * nfree))
+            if not math.isfinite(err):
+                err = 1e10
+            if err <= 1.0:
+                t = target if last else t + hs
+                x[:] = xs
+                v[:] = vs
+                KX[0] = KX[6]
+                KV[0] = KV[6]
+                steps += 1
+                st = _check(x, v, vmax)
+                if st != 0:
+                    status = st
+                    break
+                # PI controller (Gustafsson): exponents 0.7/5 and 0.4/5
+                fac = 0.9 * max(err, 1e-10) ** (-0.14) * max(err_prev, 1e-4) ** 0.08
+                fac = min(5.0, max(0.2, fac))
+                if not last or hs >= h:
+                    h = hs * fac
+                err_prev = err
+            else:
+                rejected += 1
+                h = hs * max(0.2, 0.9 * err ** (-0.2))
+                if h < h_min:
+                    status = 3
+                    break
+        if status != 0:
+            break
+        out[fi] = x
+        outv[fi] = v
+        fi += 1
+    return out, outv, fi, status, steps, rejected, nevals
+
+
+@njit(cache=True)
+def _symplectic_loop(
+    t0: float,
+    x0: np.ndarray,
+    v0: np.ndarray,
+    frame_times: np.ndarray,
+    model: tuple,
+    P: np.ndarray,
+    drv: tuple,
+    col: tuple,
+    h_max: float,
+    max_steps: int,
+    vmax: float,
+) -> tuple:
+    N = x0.shape[0]
+    T = frame_times.shape[0]
+    out = np.full((T, N, 3), np.nan)
+    outv = np.full((T, N, 3), np.nan)
+    D = drv[0].shape[0]
+    dwork = np.zeros((3, max(D, 1), 3))
+    x = x0.copy()
+    v = v0.copy()
+    acc = np.zeros((N, 3))
+    f = np.zeros((N, 3))
+    xref = x.copy()
+    pairs = -np.ones((1, 2), dtype=np.int64)
+    t = t0
+    _set_driven(t, x, v, drv, dwork)
+    steps = 0
+    status = 0
+    fi = 0
+    while fi < T and frame_times[fi] <= t0 + 1e-12:
+        out[fi] = x
+        outv[fi] = v
+        fi += 1
+    while fi < T:
+        target = frame_times[fi]
+        n_sub = int(math.ceil((target - t) / h_max - 1e-9))
+        n_sub = max(n_sub, 1)
+        h = (target - t) / n_sub
+        for s in range(n_sub):
+            if steps >= max_steps:
+                status = 4
+                break
+            pairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, xref)
+            for i in range(N):
+                for c in range(3):
+                    v[i, c] += h * acc[i, c]
+                    x[i, c] += h * v[i, c]
+            t = target if s == n_sub - 1 else t + h
+            _set_driven(t, x, v, drv, dwork)
+            steps += 1
+            st = _check(x, v, vmax)
+            if st != 0:
+                status = st
+                break
+        if status != 0:
+            break
+        out[fi] = x
+        outv[fi] = v
+        fi += 1
+    return out, outv, fi, status, steps, 0, steps

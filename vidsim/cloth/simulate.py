@@ -1,0 +1,510 @@
+"""Public cloth simulation API: a pure function of (mesh, params, driver, times).
+
+>>> from vidsim.cloth import swatch, mid_range_params, DrivenVertices, simulate
+>>> mesh = swatch(20, 20, 0.3, 0.3)
+>>> drv = DrivenVertices.fixed(mesh.tags["top_corners"], mesh.rest_positions[mesh.tags["top_corners"]])
+>>> res = simulate(mesh, mid_range_params(), drv, np.arange(50) / 30.0, integrator="fast")
+>>> res.ok, res.positions.shape
+(True, (50, 400, 3))
+
+A diverging run never raises: :class:`SimResult` has ``ok=False`` and a ``failure``
+text, its unreached frames are NaN, and :meth:`SimResult.penalty` gives the optimiser
+a finite very bad score. Bad *inputs* raise :class:`ClothInputError` (a ValueError)
+naming the field.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from vidsim.cloth.collision import (
+    Colliders,
+    build_self_pairs,
+    collider_forces,
+    self_collision_forces,
+)
+from vidsim.cloth.forces import bend_forces, drag_forces, gravity_forces, stretch_shear_forces
+from vidsim.cloth.integrate import (
+    _DP_A,
+    _DP_C,
+    _DP_E,
+    N_P,
+    P_BEND,
+    P_CELL,
+    P_COLH,
+    P_COLK,
+    P_KDB,
+    P_KDS,
+    P_KDSH,
+    P_KF,
+    P_KN,
+    P_KT,
+    P_SELFH,
+    P_SELFK,
+    P_SELFON,
+    P_SHEAR,
+    P_STRETCH,
+    STATUS_TEXT,
+    _accel,
+    _rk45_loop,
+    _symplectic_loop,
+)
+from vidsim.cloth.mesh import ClothMesh
+from vidsim.cloth.params import ClothParams
+
+__all__ = [
+    "ClothInputError",
+    "DrivenVertices",
+    "SimResult",
+    "simulate",
+    "compute_forces",
+    "energies",
+    "stable_step",
+]
+
+
+class ClothInputError(ValueError):
+    """Invalid input to the cloth simulator (shapes, times, driver coverage, ...)."""
+
+
+@dataclass(frozen=True)
+class DrivenVertices:
+    """Vertices that follow a prescribed trajectory (pins are constant trajectories).
+
+    Between samples the trajectory is a cubic Hermite curve through the sampled
+    positions and velocities (velocities default to finite differences).
+
+    Attributes:
+        indices: (D,) vertex indices.
+        times: (K,) increasing sample times [s].
+        positions: (K, D, 3) [m].
+        velocities: (K, D, 3) [m/s].
+    """
+
+    indices: np.ndarray
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        idx = np.ascontiguousarray(np.asarray(self.indices, dtype=np.int64).ravel())
+        t = np.ascontiguousarray(np.asarray(self.times, dtype=np.float64).ravel())
+        K, D = t.shape[0], idx.shape[0]
+        if len(np.unique(idx)) != D:
+            raise ClothInputError(f"driven indices must be unique, got {idx.tolist()}")
+        if K < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            raise ClothInputError("driver times must be one or more finite, strictly increasing values [s]")
+        p = np.asarray(self.positions, dtype=np.float64)
+        if p.shape != (K, D, 3):
+            raise ClothInputError(f"driver positions must have shape (K, D, 3) = {(K, D, 3)}, got {p.shape}")
+        if not np.all(np.isfinite(p)):
+            raise ClothInputError("driver positions must be finite [m]")
+        if self.velocities is None:
+            vel = np.gradient(p, t, axis=0) if K > 1 else np.zeros_like(p)
+        else:
+            vel = np.asarray(self.velocities, dtype=np.float64)
+            if vel.shape != p.shape or not np.all(np.isfinite(vel)):
+                raise ClothInputError(f"driver velocities must be finite with shape {p.shape}, got {vel.shape}")
+        object.__setattr__(self, "indices", idx)
+        object.__setattr__(self, "times", t)
+        object.__setattr__(self, "positions", np.ascontiguousarray(p))
+        object.__setattr__(self, "velocities", np.ascontiguousarray(vel))
+
+    @staticmethod
+    def none() -> "DrivenVertices":
+        """No driven vertex."""
+        return DrivenVertices(np.zeros(0, dtype=np.int64), np.zeros(1), np.zeros((1, 0, 3)))
+
+    @staticmethod
+    def fixed(indices: np.ndarray, positions: np.ndarray) -> "DrivenVertices":
+        """Pinned vertices: ``indices`` (D,) held at ``positions`` (D, 3) [m]."""
+        positions = np.asarray(positions, dtype=float)
+        return DrivenVertices(indices, np.zeros(1), positions.reshape(1, -1, 3))
+
+    @staticmethod
+    def from_function(indices: np.ndarray, fn, t0: float, t1: float, rate: float = 1000.0) -> "DrivenVertices":
+        """Sample ``fn(t) -> (D, 3)`` [m] on [t0, t1] at ``rate`` Hz (velocities by finite differences)."""
+        n = max(2, int(math.ceil((t1 - t0) * rate)) + 1)
+        ts = np.linspace(t0, t1, n)
+        return DrivenVertices(indices, ts, np.stack([np.asarray(fn(t), dtype=float) for t in ts]))
+
+    def at(self, t: float) -> np.ndarray:
+        """Positions [m] at time t [s], shape (D, 3)."""
+        from vidsim.cloth.integrate import driver_state
+
+        D = self.indices.shape[0]
+        out = np.zeros((3, max(D, 1), 3))
+        driver_state(float(t), self.times, self.positions, self.velocities, out[0], out[1], out[2])
+        return out[0, :D].copy()
+
+
+@dataclass
+class SimResult:
+    """Outcome of :func:`simulate`.
+
+    Attributes:
+        times: (T,) frame times [s].
+        positions: (T, N, 3) positions at the frame times [m]; NaN after a failure.
+        velocities: (T, N, 3) [m/s]; NaN after a failure.
+        ok: True when all frames were reached without divergence.
+        failure: None, or what went wrong (non-finite state, energy blow-up, step
+            collapse, step budget exhausted) and at which time.
+        frames_done: number of leading frames that are valid.
+        steps: accepted steps. rejected: rejected steps (RK45). evaluations: force
+            evaluations. wall_time: seconds. dt: the fixed step of the fast scheme [s]
+            (or the mean accepted step of RK45).
+        integrator: "rk45" or "fast".
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    velocities: np.ndarray
+    ok: bool
+    failure: str | None
+    frames_done: int
+    steps: int
+    rejected: int
+    evaluations: int
+    wall_time: float
+    dt: float
+    integrator: str
+    stats: dict = field(default_factory=dict)
+
+    def penalty(self, bad: float = 1e6) -> float:
+        """A finite score for optimisers: 0 when ok, else ``bad`` scaled up by the missing fraction."""
+        if self.ok:
+            return 0.0
+        missing = 1.0 - self.frames_done / max(1, len(self.times))
+        return float(bad * (1.0 + missing))
+
+
+def _param_vector(mesh: ClothMesh, params: ClothParams, self_collision: bool) -> np.ndarray:
+    P = np.zeros(N_P)
+    P[P_BEND] = params.bend
+    P[P_STRETCH] = params.stretch
+    P[P_SHEAR] = params.shear
+    P[P_KDB] = params.bend_damping
+    P[P_KDS] = params.stretch_damping
+    P[P_KDSH] = params.shear_damping
+    P[P_KT] = params.drag_linear
+    P[P_KN] = params.drag_quad
+    P[P_KF] = params.drag_degrade
+    P[P_COLK] = params.collision_stiffness
+    P[P_COLH] = params.collision_thickness
+    P[P_SELFK] = params.self_collision_stiffness
+    P[P_SELFH] = params.self_collision_thickness
+    P[P_SELFON] = 1.0 if self_collision else 0.0
+    e = mesh.unique_edges()
+    mean_edge = float(np.mean(np.linalg.norm(mesh.rest_positions[e[:, 0]] - mesh.rest_positions[e[:, 1]], axis=1)))
+    P[P_CELL] = max(mean_edge, 4.0 * params.self_collision_thickness)
+    return P
+
+
+def _model(mesh: ClothMesh, params: ClothParams, wind: np.ndarray) -> tuple:
+    mass = mesh.masses(params.density)
+    return (
+        mesh.triangles,
+        mesh.tri_coef,
+        mesh.tri_area,
+        mesh.bend_edges,
+        mesh.bend_coef,
+        mesh.bend_rest,
+        mass,
+        mesh.vertex_area,
+        np.asarray(params.gravity, dtype=np.float64),
+        np.ascontiguousarray(wind, dtype=np.float64),
+    )
+
+
+def _col(colliders: Colliders) -> tuple:
+    c = colliders
+    return (c.times, c.sphere_centers, c.sphere_radii, c.capsule_a, c.capsule_b, c.capsule_radii)
+
+
+def _drv(driver: DrivenVertices) -> tuple:
+    return (driver.indices, driver.times, driver.positions, driver.velocities)
+
+
+def _wind(wind: np.ndarray | None) -> np.ndarray:
+    if wind is None:
+        return np.zeros(3)
+    w = np.asarray(wind, dtype=np.float64).ravel()
+    if w.shape != (3,) or not np.all(np.isfinite(w)):
+        raise ClothInputError(f"wind must be 3 finite numbers [m/s], got {wind!r}")
+    return w
+
+
+def compute_forces(
+    mesh: ClothMesh,
+    params: ClothParams,
+    x: np.ndarray,
+    v: np.ndarray,
+    *,
+    t: float = 0.0,
+    colliders: Colliders | None = None,
+    self_collision: bool = False,
+    wind: np.ndarray | None = None,
+) -> np.ndarray:
+    """Total force on every vertex [N], shape (N, 3), at positions x and velocities v.
+
+    Driven vertices are not treated specially here (this is the raw force field).
+    """
+    colliders = colliders or Colliders.none()
+    model = _model(mesh, params, _wind(wind))
+    P = _param_vector(mesh, params, self_collision)
+    x = np.array(x, dtype=np.float64)
+    v = np.array(v, dtype=np.float64)
+    acc = np.zeros_like(x)
+    f = np.zeros_like(x)
+    drv = _drv(DrivenVertices.none())
+    _accel(float(t), x, v, acc, f, model, P, drv, np.zeros((3, 1, 3)), _col(colliders),
+           -np.ones((1, 2), dtype=np.int64), x.copy())
+    return f
+
+
+def energies(
+    mesh: ClothMesh,
+    params: ClothParams,
+    x: np.ndarray,
+    v: np.ndarray,
+    *,
+    t: float = 0.0,
+    colliders: Colliders | None = None,
+    self_collision: bool = False,
+) -> dict[str, float]:
+    """Energy components [J] at (x, v): kinetic, stretch, shear, bend, gravity, collision,
+    self_collision and their sum ``total`` (gravity relative to the origin)."""
+    colliders = colliders or Colliders.none()
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    mass = mesh.masses(params.density)
+    f = np.zeros_like(x)
+    z = np.zeros_like(v)
+    est, esh = stretch_shear_forces(x, z, mesh.triangles, mesh.tri_coef, mesh.tri_area,
+                                    params.stretch, params.shear, 0.0, 0.0, f)
+    eb = bend_forces(x, z, mesh.bend_edges, mesh.bend_coef, mesh.bend_rest, params.bend, 0.0, f)
+    eg = gravity_forces(x, mass, np.asarray(params.gravity), f)
+    ec = collider_forces(float(t), x, mesh.vertex_area, *_col(colliders), params.collision_stiffness,
+                         params.collision_thickness, f)
+    es = 0.0
+    if self_collision:
+        h = params.self_collision_thickness
+        pairs = build_self_pairs(x, mesh.triangles, h, _param_vector(mesh, params, True)[P_CELL])
+        es = self_collision_forces(x, mesh.triangles, mesh.vertex_area, pairs, params.self_collision_stiffness, h, f)
+    ek = 0.5 * float(np.sum(mass * np.sum(v * v, axis=1)))
+    out = {"kinetic": ek, "stretch": est, "shear": esh, "bend": eb, "gravity": eg, "collision": ec,
+           "self_collision": es}
+    out["total"] = float(sum(out.values()))
+    return out
+
+
+def stable_step(
+    mesh: ClothMesh,
+    params: ClothParams,
+    x: np.ndarray | None = None,
+    *,
+    driven: np.ndarray | None = None,
+    self_collision: bool = False,
+    colliders: Colliders | None = None,
+    safety: float = 0.8,
+    iterations: int = 30,
+    v_ref: float = 5.0,
+) -> tuple[float, dict[str, float]]:
+    """Largest stable step [s] of the symplectic Euler scheme, from the stiffest mode.
+
+    omega_max^2 is the largest eigenvalue of M^-1 K (power iteration on finite
+    differences of the elastic forces at ``x``), plus the contact stiffness k/density
+    of the colliders (and twice that for self contact); c_max is the largest
+    eigenvalue of M^-1 D (damping) plus the drag rates (k_T + 2 k_N v_ref)/density.
+    The step solves omega^2 h^2 + 2 c h = 4 (stability of symplectic Euler for a damped
+    oscillator), times ``safety``.
+
+    Returns:
+        (h [s], {"omega_max": rad/s, "c_max": 1/s, "h_stable": s}).
+    """
+    x = mesh.rest_positions if x is None else np.asarray(x, dtype=np.float64)
+    N = mesh.n_vertices
+    mass = mesh.masses(params.density)
+    free = np.ones(N, dtype=bool)
+    if driven is not None and len(driven):
+        free[np.asarray(driven)] = False
+    rng = np.random.default_rng(0)
+    scale = float(np.sqrt(np.mean(mesh.tri_area)))
+    z = np.zeros((N, 3))
+
+    def kforce(xx: np.ndarray) -> np.ndarray:
+        f = np.zeros((N, 3))
+        stretch_shear_forces(xx, z, mesh.triangles, mesh.tri_coef, mesh.tri_area, params.stretch, params.shear, 0.0, 0.0, f)
+        bend_forces(xx, z, mesh.bend_edges, mesh.bend_coef, mesh.bend_rest, params.bend, 0.0, f)
+        return f
+
+    def dforce(vv: np.ndarray) -> np.ndarray:
+        f = np.zeros((N, 3))
+        stretch_shear_forces(x, vv, mesh.triangles, mesh.tri_coef, mesh.tri_area, 0.0, 0.0,
+                             params.stretch_damping, params.shear_damping, f)
+        bend_forces(x, vv, mesh.bend_edges, mesh.bend_coef, mesh.bend_rest, 0.0, params.bend_damping, f)
+        return f
+
+    def power(op) -> float:
+        u = rng.standard_normal((N, 3))
+        u[~free] = 0.0
+        lam = 0.0
+        for _ in range(iterations):
+            nu = np.linalg.norm(u)
+            if nu == 0:
+                return 0.0
+            u /= nu
+            w = op(u) / mass[:, None]
+            w[~free] = 0.0
+            lam = float(np.sum(u * w))
+            u = w
+        return abs(lam) * 1.05  # power iteration underestimates; small margin
+
+    eps = 1e-7 * scale
+    omega2 = power(lambda u: -(kforce(x + eps * u) - kforce(x - eps * u)) / (2 * eps))
+    damp = power(lambda u: -dforce(u))
+    cols = colliders or Colliders.none()
+    if not cols.empty:
+        omega2 += params.collision_stiffness / params.density
+    if self_collision:
+        omega2 += 2.0 * params.self_collision_stiffness / params.density
+    damp += (params.drag_linear + 2.0 * params.drag_quad * v_ref) / params.density
+    if omega2 <= 0:
+        h = 4.0 / max(2 * damp, 1e-9)
+    else:
+        h = (-damp + math.sqrt(damp * damp + 4.0 * omega2)) / omega2
+    return safety * h, {"omega_max": math.sqrt(max(omega2, 0.0)), "c_max": damp, "h_stable": h}
+
+
+def simulate(
+    mesh: ClothMesh,
+    params: ClothParams,
+    driver: DrivenVertices | None,
+    times: np.ndarray,
+    *,
+    integrator: Literal["rk45", "fast"] = "rk45",
+    x0: np.ndarray | None = None,
+    v0: np.ndarray | None = None,
+    t0: float | None = None,
+    colliders: Colliders | None = None,
+    self_collision: bool = False,
+    wind: np.ndarray | None = None,
+    rtol: float = 1e-3,
+    atol_x: float = 1e-4,
+    atol_v: float = 1e-3,
+    safety: float = 0.8,
+    dt: float | None = None,
+    max_steps: int = 2_000_000,
+    v_max: float = 100.0,
+) -> SimResult:
+    """Simulate the cloth and return its state at the requested frame times.
+
+    Args:
+        mesh: the cloth mesh (rest state).
+        params: physical parameters (SI).
+        driver: driven/pinned vertices (None: all free). Must cover [t0, times[-1]].
+        times: (T,) increasing frame times [s], e.g. ``np.arange(50) / 30``.
+        integrator: "rk45" (adaptive Dormand-Prince, reference) or "fast"
+            (symplectic Euler at the stiffest-mode step).
+        x0, v0: (N, 3) initial positions [m] / velocities [m/s] (default: rest, zero).
+        t0: time of the initial state [s] (default ``times[0]``).
+        colliders: kinematic spheres/capsules (default none).
+        self_collision: enable cloth self repulsion.
+        wind: (3,) uniform air velocity [m/s] (hook for a wind field).
+        rtol, atol_x [m], atol_v [m/s]: RK45 error tolerances.
+        safety: fraction of the stable step used by "fast".
+        dt: override of the "fast" step [s].
+        max_steps: step budget (failure when exhausted).
+        v_max: a vertex faster than this [m/s] counts as a blow-up.
+
+    Returns:
+        :class:`SimResult`; never raises for a diverging simulation.
+
+    Raises:
+        ClothInputError: malformed times, initial state, driver or options.
+    """
+    t_wall = time.perf_counter()
+    if integrator not in ("rk45", "fast"):
+        raise ClothInputError(f"integrator must be 'rk45' or 'fast', got {integrator!r}")
+    times = np.ascontiguousarray(np.asarray(times, dtype=np.float64).ravel())
+    if times.size == 0 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
+        raise ClothInputError("times must be one or more finite, strictly increasing frame times [s]")
+    t0 = float(times[0]) if t0 is None else float(t0)
+    if not math.isfinite(t0) or t0 > times[0]:
+        raise ClothInputError(f"t0 must be finite and <= times[0] = {times[0]}, got {t0}")
+    N = mesh.n_vertices
+    x = mesh.rest_positions.copy() if x0 is None else np.array(x0, dtype=np.float64)
+    v = np.zeros((N, 3)) if v0 is None else np.array(v0, dtype=np.float64)
+    for name, arr in (("x0", x), ("v0", v)):
+        if arr.shape != (N, 3) or not np.all(np.isfinite(arr)):
+            raise ClothInputError(f"{name} must be finite with shape {(N, 3)}, got {arr.shape}")
+    driver = driver if driver is not None else DrivenVertices.none()
+    if driver.indices.size and (driver.indices.min() < 0 or driver.indices.max() >= N):
+        raise ClothInputError(f"driver indices must lie in [0, {N}), got {driver.indices.tolist()}")
+    if driver.times.size > 1 and (driver.times[0] > t0 + 1e-9 or driver.times[-1] < times[-1] - 1e-9):
+        raise ClothInputError(
+            f"driver covers [{driver.times[0]}, {driver.times[-1]}] s but the simulation needs [{t0}, {times[-1]}] s"
+        )
+    colliders = colliders or Colliders.none()
+    w = _wind(wind)
+    for name, val in (("rtol", rtol), ("atol_x", atol_x), ("atol_v", atol_v), ("safety", safety), ("v_max", v_max)):
+        if not (val > 0 and math.isfinite(val)):
+            raise ClothInputError(f"{name} must be a positive finite number, got {val!r}")
+    if self_collision:
+        h = params.self_collision_thickness
+        P0 = _param_vector(mesh, params, True)
+        rest_pairs = build_self_pairs(mesh.rest_positions, mesh.triangles, h, P0[P_CELL])
+        if rest_pairs.shape[0]:
+            raise ClothInputError(
+                f"self_collision_thickness {h} m is too large for this mesh: {rest_pairs.shape[0]} "
+                f"vertex-triangle pairs already touch at rest (shortest edge {mesh.min_rest_edge():.4g} m)"
+            )
+    model = _model(mesh, params, w)
+    P = _param_vector(mesh, params, self_collision)
+    drv = _drv(driver)
+    col = _col(colliders)
+    free = np.ones(N, dtype=np.bool_)
+    free[driver.indices] = False
+    stats: dict = {}
+    if integrator == "fast":
+        if dt is None:
+            dt_used, info = stable_step(mesh, params, x, driven=driver.indices, self_collision=self_collision,
+                                        colliders=colliders, safety=safety)
+            stats.update(info)
+        else:
+            if not (dt > 0 and math.isfinite(dt)):
+                raise ClothInputError(f"dt must be a positive finite step [s], got {dt!r}")
+            dt_used = float(dt)
+        out, outv, done, status, steps, rej, nev = _symplectic_loop(t0, x, v, times, model, P, drv, col, dt_used,
+                                                                    int(max_steps), float(v_max))
+    else:
+        span = max(times[-1] - t0, 1e-6)
+        h_init = min(1e-4, span)
+        out, outv, done, status, steps, rej, nev = _rk45_loop(
+            t0, x, v, times, model, P, drv, col, free, float(rtol), float(atol_x), float(atol_v), h_init,
+            1e-10 * max(span, 1.0), int(max_steps), float(v_max), _DP_A, _DP_C, _DP_E)
+        dt_used = span * (done / len(times)) / max(steps, 1)
+    failure = None
+    if status != 0:
+        t_fail = times[done] if done < len(times) else times[-1]
+        failure = f"{STATUS_TEXT[int(status)]} before t = {t_fail:.4g} s (frame {done})"
+    return SimResult(
+        times=times,
+        positions=out,
+        velocities=outv,
+        ok=status == 0,
+        failure=failure,
+        frames_done=int(done),
+        steps=int(steps),
+        rejected=int(rej),
+        evaluations=int(nev),
+        wall_time=time.perf_counter() - t_wall,
+        dt=float(dt_used),
+        integrator=integrator,
+        stats=stats,
+    )
