@@ -145,9 +145,24 @@ def camera_rays(cam: PinholeCamera) -> np.ndarray:
     return np.stack([x, y], axis=-1)
 
 
+_RAYS_CACHE: dict[bytes, np.ndarray] = {}
+
+
+def _cached_rays(cam: PinholeCamera) -> np.ndarray:
+    """:func:`camera_rays` memoised on the intrinsics, distortion and size (a few cameras per process)."""
+    key = cam.K.tobytes() + cam.dist.tobytes() + np.array([cam.width, cam.height]).tobytes()
+    if key not in _RAYS_CACHE:
+        if len(_RAYS_CACHE) >= 8:
+            _RAYS_CACHE.pop(next(iter(_RAYS_CACHE)))
+        rays = camera_rays(cam)
+        rays.setflags(write=False)
+        _RAYS_CACHE[key] = rays
+    return _RAYS_CACHE[key]
+
+
 @njit(cache=True)
-def _shade(depth, rays, idx, nrm, Rc, tc, Kp, Rp, tp, distp, use_dist, Hp, Wp, depth_proj, has_shadow,
-           period, phase_frac, duty, power, ambient, bias, out):
+def _shade(depth, rays, use_rays, Kinv, idx, nrm, Rc, tc, Kp, Rp, tp, distp, use_dist, Hp, Wp, depth_proj,
+           has_shadow, period, phase_frac, duty, power, ambient, bias, out):
     H, W = depth.shape
     Cc = np.empty(3)
     Cp = np.empty(3)
@@ -162,8 +177,14 @@ def _shade(depth, rays, idx, nrm, Rc, tc, Kp, Rp, tp, distp, use_dist, Hp, Wp, d
             if not (z < np.inf) or k < 0:
                 out[i, j] = 0.0
                 continue
-            xc = rays[i, j, 0] * z - tc[0]
-            yc = rays[i, j, 1] * z - tc[1]
+            if use_rays:
+                rx = rays[i, j, 0]
+                ry = rays[i, j, 1]
+            else:  # ideal lens: K^-1 (j, i, 1)
+                rx = Kinv[0, 0] * j + Kinv[0, 1] * i + Kinv[0, 2]
+                ry = Kinv[1, 1] * i + Kinv[1, 2]
+            xc = rx * z - tc[0]
+            yc = ry * z - tc[1]
             zc = z - tc[2]
             # world point X = R^T (x_cam - t)
             X0 = Rc[0, 0] * xc + Rc[1, 0] * yc + Rc[2, 0] * zc
@@ -243,7 +264,8 @@ def shade_stripes(
         depth_proj: (Hp, Wp) camera-z depth map rendered from ``projector.cam`` (shadow map,
             inf background), or None to ignore shadows.
         face: (H, W) int face index map (-1 background) when ``normals`` are face normals.
-        rays: optional precomputed :func:`camera_rays` of ``cam`` (saves time in loops).
+        rays: optional precomputed :func:`camera_rays` of ``cam``; by default an ideal lens is
+            inverted on the fly and a distorting lens's rays are computed once and memoised.
 
     Returns:
         (H, W) float32 irradiance (linear units of ``projector.power``), 0 on background.
@@ -284,12 +306,17 @@ def shade_stripes(
             raise ProjectorError(f"'depth_proj' must have the projector's shape {(pc.height, pc.width)}, got {dp.shape}")
         dp = np.where(np.isfinite(dp) & (dp > 0), dp, np.float32(np.inf)).astype(np.float32)
         has_shadow = True
-    if rays is None:
-        rays = camera_rays(cam)
-    elif rays.shape != (H, W, 2):
-        raise ProjectorError(f"'rays' must have shape {(H, W, 2)}, got {rays.shape}")
+    if rays is not None:
+        if rays.shape != (H, W, 2):
+            raise ProjectorError(f"'rays' must have shape {(H, W, 2)}, got {rays.shape}")
+        rays = np.ascontiguousarray(rays, dtype=np.float64)
+    elif np.any(cam.dist):
+        rays = _cached_rays(cam)
+    use_rays = rays is not None
+    if not use_rays:
+        rays = np.empty((1, 1, 2))
     out = np.empty((H, W), np.float32)
-    _shade(depth, np.ascontiguousarray(rays, dtype=np.float64), idx, nrm, cam.R, cam.t,
+    _shade(depth, rays, use_rays, np.linalg.inv(cam.K), idx, nrm, cam.R, cam.t,
            pc.K, pc.R, pc.t, pc.dist, bool(np.any(pc.dist)), pc.height, pc.width, dp, has_shadow,
            projector.period_px, projector.phase / (2 * np.pi), projector.duty, projector.power,
            projector.ambient, projector.shadow_bias, out)
@@ -323,7 +350,7 @@ def render_stripes_batch(
     depth, face, _, _ = _run(Vs, F, cam, near, 1)
     dproj = _run(Vs, F, projector.cam, near, 1)[0] if shadows else None
     normals = face_normals(Vs, F)
-    rays = camera_rays(cam)
+    rays = _cached_rays(cam) if np.any(cam.dist) else None
     out = np.empty_like(depth)
     for k in range(Vs.shape[0]):
         out[k] = shade_stripes(depth[k], cam, projector, normals[k], None if dproj is None else dproj[k],
