@@ -158,3 +158,24 @@ def test_bad_scene_input_names_the_field(renderer):
         MeshItem(V, F, texture=np.zeros((4, 4, 3), np.uint8))
     with pytest.raises(ValueError, match="background"):
         renderer.render([MeshItem(V, F)], _camera(), background=np.zeros((5, 5, 3), np.uint8))
+
+
+def test_projector_colour_is_albedo_times_irradiance(renderer):
+    from vidsim.render.projector import Projector
+
+    R, t = look_at(np.array([0.0, -2.0, 0.0]), np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    cam = PinholeCamera(intrinsics(200.0, None, W / 2 - 0.5, H / 2 - 0.5), R, t, W, H)
+    Rp, tp = look_at(np.array([0.3, -1.5, 0.2]), np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    proj = Projector(PinholeCamera(intrinsics(300.0, None, 159.5, 119.5), Rp, tp, 320, 240), period_px=12.0,
+                     power=0.6, ambient=0.1)
+    V, F = prim.grid_sheet(5, 5, (1.2, 1.0))
+    V = np.column_stack([V[:, 0], np.zeros(len(V)), V[:, 1]])
+    vc = np.tile([0.9, 0.0, 0.4], (len(V), 1))  # per-vertex albedo
+    out = renderer.render([MeshItem(V, F, vertex_colors=vc)], cam, projector=proj)
+    inner = np.zeros((H, W), bool)
+    inner[70:170, 110:210] = True  # well inside the sheet (u in [39.5, 279.5], v in [19.5, 219.5])
+    assert out.mask[inner].all()
+    irr = out.irradiance[inner]
+    assert irr.min() == pytest.approx(0.1, abs=1e-6) and irr.max() > 0.3  # dark and bright stripes
+    expect = np.clip(np.rint(255.0 * irr[:, None] * np.array([0.9, 0.0, 0.4])), 0, 255)
+    assert np.abs(out.color[inner].astype(int) - expect).max() <= 1
