@@ -73,8 +73,8 @@ class ChessboardTarget:
     """
 
     pattern_size: tuple[int, int] = (9, 6)
-    square_size: float = 0.03
-    board_extent: tuple[float, float, float, float] = (-0.06, 0.70, -0.10, 0.25)
+    square_size: float = 0.04
+    board_extent: tuple[float, float, float, float] = (-0.08, 0.90, -0.10, 0.34)
     white: float = 0.9
     black: float = 0.06
     background: float = 0.2
@@ -206,6 +206,8 @@ class CalibrationResult:
         object_points: (N, 3) board-frame corners, metres.
         image_points: (V, N, 2) detected corners of the used views, pixels.
         flags: the ``cv2.CALIB_*`` flags used.
+        pattern_size: inner corners (per row, rows) of the board.
+        square_size: square side of the board, metres.
     """
 
     K: np.ndarray
@@ -220,6 +222,8 @@ class CalibrationResult:
     object_points: np.ndarray
     image_points: np.ndarray
     flags: int = 0
+    pattern_size: tuple[int, int] = (9, 6)
+    square_size: float = 0.025
 
     @property
     def n_views(self) -> int:
@@ -362,7 +366,7 @@ def _canonical_order(gray: np.ndarray, corners: np.ndarray, pattern_size: tuple[
 def detect_chessboard(
     image: np.ndarray,
     pattern_size: tuple[int, int] = (9, 6),
-    subpix_window: int | None = 11,
+    subpix_window: int | None = None,
     criteria: tuple[int, int, float] = SUBPIX_CRITERIA,
 ) -> np.ndarray | None:
     """Find the inner corners of a chessboard with sub-pixel accuracy.
@@ -371,7 +375,8 @@ def detect_chessboard(
         image: (H, W) grayscale or (H, W, 3) BGR image (uint8, or float in [0, 1]).
         pattern_size: inner corners (per row, rows).
         subpix_window: half-size of the ``cornerSubPix`` search window, pixels; ``None`` picks
-            40 % of the smallest corner spacing (at most 11), for boards with small squares.
+            0.6 x the smallest corner spacing, at most 11 (OpenCV's sample value, reached for
+            squares of 19 px and more), so that small squares keep neighbours out of the window.
         criteria: ``cornerSubPix`` termination criteria.
 
     Returns:
@@ -387,7 +392,7 @@ def detect_chessboard(
         c = corners.reshape(pattern_size[1], pattern_size[0], 2)
         dx = np.linalg.norm(np.diff(c, axis=1), axis=2).min()
         dy = np.linalg.norm(np.diff(c, axis=0), axis=2).min()
-        win = int(np.clip(0.4 * min(dx, dy), 2, 11))
+        win = int(np.clip(0.6 * min(dx, dy), 2, 11))
     else:
         win = int(subpix_window)
     corners = cv2.cornerSubPix(gray, corners, (win, win), (-1, -1), criteria)
@@ -412,7 +417,7 @@ def calibrate_chessboard(
     flags: int = 0,
     image_names: Sequence[str] | None = None,
     min_views: int = 3,
-    subpix_window: int | None = 11,
+    subpix_window: int | None = None,
     aspect_ratio: float = 1.0,
 ) -> CalibrationResult:
     """Calibrate a camera (Zhang's method) from chessboard photographs.
@@ -476,6 +481,8 @@ def calibrate_chessboard(
         object_points=obj,
         image_points=np.array(pts),
         flags=int(flags),
+        pattern_size=(int(pattern_size[0]), int(pattern_size[1])),
+        square_size=float(square_size),
     )
 
 
@@ -615,68 +622,106 @@ def _projected_light(target_img: np.ndarray, pattern_img: np.ndarray) -> np.ndar
     return np.clip(np.rint(255.0 * d / hi), 0, 255).astype(np.uint8)
 
 
+def board_pose(
+    camera: CalibrationResult, image: np.ndarray, name: str = "image"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Pose of the printed board in one image with the calibrated camera (PnP, LM-refined).
+
+    Args:
+        camera: calibration giving K, distortion and the board's ``pattern_size``/``square_size``.
+        image: (H, W) image of the board, projector dark.
+        name: image name for messages.
+
+    Returns:
+        ``(R, t, rms_px)``: board -> camera rotation (3, 3), translation (3,) metres and the
+        view's RMS reprojection error in pixels; ``None`` when the board is not found.
+    """
+    g = _as_gray_u8(image, name)
+    w, h = camera.image_size
+    if g.shape != (h, w):
+        raise CalibrationError(f"image '{name}' is {g.shape[1]}x{g.shape[0]}, expected {w}x{h} like the camera calibration")
+    c = detect_chessboard(g, camera.pattern_size)
+    if c is None:
+        return None
+    obj = chessboard_object_points(camera.pattern_size, camera.square_size)
+    ok, rvec, tvec = cv2.solvePnP(obj, c, camera.K, camera.dist, flags=cv2.SOLVEPNP_IPPE)
+    if not ok:
+        return None
+    rvec, tvec = cv2.solvePnPRefineLM(obj, c, camera.K, camera.dist, rvec, tvec)
+    err = _per_view_rms(obj, c[None], [rvec], [tvec], camera.K, camera.dist)[0]
+    R, _ = cv2.Rodrigues(rvec)
+    return R, np.ravel(tvec).astype(float), float(err)
+
+
+#: Default projector model: no lens distortion. A projected pattern usually covers only part of
+#: the projector image, which does not constrain distortion; pass other flags to estimate it.
+PROJECTOR_FLAGS: int = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K1 | cv2.CALIB_FIX_K2 | cv2.CALIB_FIX_K3
+
+
 def calibrate_projector(
     camera: CalibrationResult,
     target_images: Sequence[np.ndarray],
     pattern_images: Sequence[np.ndarray | None],
     pattern: ProjectorPattern,
     image_names: Sequence[str] | None = None,
-    flags: int = cv2.CALIB_ZERO_TANGENT_DIST | cv2.CALIB_FIX_K3,
+    flags: int = PROJECTOR_FLAGS,
     min_views: int = 3,
 ) -> ProjectorCalibration:
     """Calibrate a projector from its chessboard pattern cast onto the target (inverse camera).
 
-    For each view the target's pose comes from the camera calibration (the printed board in the
-    projector-dark image). The projected corners are found in the difference image, their camera
-    rays are intersected with the target plane, and the 3-D points are matched with the
-    pattern's projector pixels: projector intrinsics by Zhang's method on the per-view planar
-    points, then the camera -> projector pose by PnP over all views' points in the camera frame.
+    For each view the target's pose is found from its printed board with the calibrated camera
+    (PnP). The projected corners are found in the difference image (projector on minus off),
+    their camera rays are intersected with the target plane, and the 3-D points are matched with
+    the pattern's projector pixels: projector intrinsics by Zhang's method on the per-view
+    planar points, then the camera -> projector pose by PnP over all views' points in the camera
+    frame (non-planar, so the pose is well determined).
 
     Args:
-        camera: calibration from the same ``target_images`` (names must match ``used``).
-        target_images: the projector-dark images, one per view, as given to the camera calibration.
-        pattern_images: images at the same poses and exposure with the pattern projected
+        camera: calibration of the camera that took the images.
+        target_images: per view, the target with the projector dark.
+        pattern_images: per view, the same pose and exposure with the pattern projected
             (``None`` for a view without one).
         pattern: the projected pattern (projector resolution, corners in projector pixels).
-        image_names: names of the views, as given to the camera calibration.
-        flags: ``cv2.CALIB_*`` flags for the projector intrinsics (default: radial k1, k2 only).
-        min_views: fewest views with a detected pattern.
+        image_names: names of the views (default ``projector[i]``).
+        flags: ``cv2.CALIB_*`` flags for the projector intrinsics (default :data:`PROJECTOR_FLAGS`).
+        min_views: fewest views with both the board and the projected pattern found.
 
     Returns:
         Projector intrinsics and camera -> projector pose.
 
     Raises:
-        CalibrationError: mismatched inputs, or fewer than ``min_views`` views with a detected
-            pattern on a view whose target pose is known.
+        CalibrationError: mismatched inputs, or fewer than ``min_views`` usable views (the
+            message names the rejected views and why).
     """
     if len(pattern_images) != len(target_images):
         raise CalibrationError(
             f"projector: {len(target_images)} target images but {len(pattern_images)} pattern images (one per view needed)"
         )
     if image_names is None:
-        image_names = [f"calibration[{i}]" for i in range(len(target_images))]
+        image_names = [f"projector[{i}]" for i in range(len(target_images))]
     names = [str(n) for n in image_names]
+    if len(names) != len(target_images):
+        raise CalibrationError(f"projector: {len(target_images)} views but {len(names)} image_names")
     w, h = camera.image_size
     obj_b, img_p, pts_c, used, rejected = [], [], [], [], {}
+    poses_bc: list[tuple[np.ndarray, np.ndarray]] = []
     corners_p = pattern.corners()
     nx, ny = pattern.pattern_size
     for n, timg, pimg in zip(names, target_images, pattern_images):
         if pimg is None:
             continue
-        if n not in camera.used:
-            rejected[n] = f"target pose unknown ({camera.rejected.get(n, 'not in the camera calibration')})"
+        pose = board_pose(camera, timg, n)
+        if pose is None:
+            rejected[n] = f"printed {camera.pattern_size[0]}x{camera.pattern_size[1]} board not found"
             continue
+        R_bc, t_bc, _ = pose
         tg, pg = _as_gray_u8(timg, n), _as_gray_u8(pimg, f"{n} (pattern)")
-        if tg.shape != (h, w) or pg.shape != (h, w):
-            raise CalibrationError(
-                f"projector: view '{n}' images are {tg.shape[1]}x{tg.shape[0]} and {pg.shape[1]}x{pg.shape[0]}, "
-                f"expected {w}x{h} like the camera calibration"
-            )
+        if pg.shape != (h, w):
+            raise CalibrationError(f"projector: pattern image of view '{n}' is {pg.shape[1]}x{pg.shape[0]}, expected {w}x{h}")
         c = detect_chessboard(_projected_light(tg, pg), (nx, ny), subpix_window=None)
         if c is None:
             rejected[n] = f"projected {nx}x{ny} pattern not found"
             continue
-        R_bc, t_bc = camera.pose(n)
         Xc, Xb = intersect_board(pixel_rays(c, camera.K, camera.dist), R_bc, t_bc)
         if not np.all(np.isfinite(Xc)):
             rejected[n] = "projected corners do not meet the target plane"
@@ -685,22 +730,32 @@ def calibrate_projector(
         obj_b.append(Xb)
         img_p.append(corners_p)
         pts_c.append(Xc)
+        poses_bc.append((R_bc, t_bc))
     if len(used) < min_views:
         raise CalibrationError(
-            f"projector: only {len(used)} view(s) with a detected projected pattern ({', '.join(used) or 'none'}), "
+            f"projector: only {len(used)} view(s) with board and projected pattern found ({', '.join(used) or 'none'}), "
             f"need at least {min_views}; rejected: {', '.join(f'{k} ({v})' for k, v in rejected.items()) or 'none'}"
         )
     size_p = (pattern.width, pattern.height)
     obj32 = [np.column_stack([o[:, :2], np.zeros(len(o))]).astype(np.float32) for o in obj_b]
     img32 = [p.astype(np.float32).reshape(-1, 1, 2) for p in img_p]
-    _, Kp, dp, _, _ = cv2.calibrateCamera(obj32, img32, size_p, None, None, flags=flags)
+    _, Kp, dp, rv_bp, tv_bp = cv2.calibrateCamera(obj32, img32, size_p, None, None, flags=flags)
     dp = np.asarray(dp, float).ravel()[:5]
     dp = np.pad(dp, (0, 5 - dp.size))
+    # Camera -> projector pose: start from the per-view estimates (board -> projector composed
+    # with camera -> board), averaged on the rotation manifold, then refine on all points.
+    Rs, ts = [], []
+    for rvb, tvb, (Rbc, tbc) in zip(rv_bp, tv_bp, poses_bc):
+        Rbp, _ = cv2.Rodrigues(np.asarray(rvb, float))
+        Rpc = Rbp @ Rbc.T
+        Rs.append(Rpc)
+        ts.append(np.ravel(tvb) - Rpc @ tbc)
+    U, _, Vt = np.linalg.svd(np.sum(Rs, axis=0))
+    R0 = U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+    rvec, _ = cv2.Rodrigues(R0)
+    tvec = np.median(ts, axis=0).reshape(3, 1)
     Xall = np.concatenate(pts_c)
     uall = np.concatenate(img_p)
-    ok, rvec, tvec = cv2.solvePnP(Xall, uall, Kp, dp, flags=cv2.SOLVEPNP_ITERATIVE)
-    if not ok:
-        raise CalibrationError("projector: pose of the projector relative to the camera could not be estimated")
     rvec, tvec = cv2.solvePnPRefineLM(Xall, uall, Kp, dp, rvec, tvec)
     Rp, _ = cv2.Rodrigues(rvec)
     proj, _ = cv2.projectPoints(Xall, rvec, tvec, Kp, dp)
@@ -804,35 +859,57 @@ def board_poses_facing_camera(
     anchor_board: np.ndarray,
     anchor_camera: np.ndarray,
     max_tilt_deg: float = 30.0,
+    min_tilt_deg: float = 10.0,
     max_roll_deg: float = 10.0,
     jitter: float = 0.03,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Random board -> camera poses with the printed face towards the camera.
 
     The board point ``anchor_board`` (3,) is placed near ``anchor_camera`` (3,) (camera frame,
-    metres, jittered by ``jitter`` m); the board is tilted about its x and y axes by up to
-    ``max_tilt_deg`` and rolled about the viewing axis by up to ``max_roll_deg``.
+    metres, jittered by up to ``jitter`` m per axis). The board is tilted out of the
+    fronto-parallel plane by an angle uniform in [``min_tilt_deg``, ``max_tilt_deg``] about a
+    random in-plane axis (fronto-parallel views do not constrain the focal length), and rolled
+    about the viewing axis by up to ``max_roll_deg``.
 
     Returns:
         ``n`` pairs ``(R, t)`` with ``X_cam = R X_board + t``.
     """
+    if not 0 <= min_tilt_deg <= max_tilt_deg < 80:
+        raise CalibrationError(f"board poses: need 0 <= min_tilt_deg <= max_tilt_deg < 80, got {min_tilt_deg}, {max_tilt_deg}")
     poses = []
     for _ in range(int(n)):
-        ax, ay = np.deg2rad(rng.uniform(-max_tilt_deg, max_tilt_deg, 2))
-        az = np.deg2rad(rng.uniform(-max_roll_deg, max_roll_deg))
-        R, _ = cv2.Rodrigues(np.array([ax, ay, az]))
+        tilt = np.deg2rad(rng.uniform(min_tilt_deg, max_tilt_deg))
+        phi = rng.uniform(0, 2 * np.pi)
+        roll = np.deg2rad(rng.uniform(-max_roll_deg, max_roll_deg))
+        R_tilt, _ = cv2.Rodrigues(tilt * np.array([np.cos(phi), np.sin(phi), 0.0]))
+        R_roll, _ = cv2.Rodrigues(np.array([0.0, 0.0, roll]))
+        R = R_tilt @ R_roll
         t = np.asarray(anchor_camera, float) + rng.uniform(-jitter, jitter, 3) - R @ np.asarray(anchor_board, float)
         poses.append((R, t))
     return poses
 
 
+_RAY_CACHE: dict[tuple, np.ndarray] = {}
+
+
 def _supersampled_rays(camera: PinholeCamera, ss: int) -> np.ndarray:
-    """(H*ss, W*ss, 3) camera-frame rays through sub-pixel samples of the distorted image."""
+    """(H*ss, W*ss, 3) camera-frame rays through sub-pixel samples of the distorted image.
+
+    The last map is cached (keyed by intrinsics, distortion, size and ``ss``): rendering many
+    views with one camera inverts the lens distortion once.
+    """
+    key = (camera.K.tobytes(), camera.dist.tobytes(), camera.width, camera.height, int(ss))
+    if key in _RAY_CACHE:
+        return _RAY_CACHE[key]
+    _RAY_CACHE.clear()
     off = (np.arange(ss) + 0.5) / ss - 0.5
     u = (np.arange(camera.width)[:, None] + off[None, :]).ravel()
     v = (np.arange(camera.height)[:, None] + off[None, :]).ravel()
     uu, vv = np.meshgrid(u, v)
-    return pixel_rays(np.stack([uu.ravel(), vv.ravel()], 1), camera.K, camera.dist).reshape(len(v), len(u), 3)
+    rays = pixel_rays(np.stack([uu.ravel(), vv.ravel()], 1), camera.K, camera.dist).reshape(len(v), len(u), 3)
+    rays.flags.writeable = False
+    _RAY_CACHE[key] = rays
+    return rays
 
 
 def render_target_views(
@@ -886,28 +963,27 @@ def render_target_views(
         t = np.asarray(t, float).ravel()
         Xc, Xb = intersect_board(rays, R, t)
         hit = np.isfinite(Xb[..., 0])
-        alb = np.full(Xb.shape[:2], target.background)
-        alb[hit] = target.albedo(Xb[hit][:, 0], Xb[hit][:, 1])
+        with np.errstate(invalid="ignore"):
+            alb = np.where(hit, target.albedo(Xb[..., 0], Xb[..., 1]), target.background)
         irr = np.full(Xb.shape[:2], float(ambient))
         if projector is not None:
-            Xp = Xc[hit] @ projector.R.T + projector.t
-            z = Xp[:, 2]
+            Xp = Xc @ projector.R.T + projector.t
+            z = Xp[..., 2]
             with np.errstate(divide="ignore", invalid="ignore"):
-                x, y = Xp[:, 0] / z, Xp[:, 1] / z
-            if np.any(projector.dist):
-                x, y = distort_normalized(x, y, projector.dist)
-            Kp = projector.K
-            up = Kp[0, 0] * x + Kp[0, 1] * y + Kp[0, 2]
-            vp = Kp[1, 1] * y + Kp[1, 2]
-            ui, vi = np.rint(up), np.rint(vp)
-            inside = (z > 0) & (ui >= 0) & (ui < pattern.width) & (vi >= 0) & (vi < pattern.height)
-            val = np.zeros(len(z))
+                x, y = Xp[..., 0] / z, Xp[..., 1] / z
+                if np.any(projector.dist):
+                    x, y = distort_normalized(x, y, projector.dist)
+                Kp = projector.K
+                ui = np.rint(Kp[0, 0] * x + Kp[0, 1] * y + Kp[0, 2])
+                vi = np.rint(Kp[1, 1] * y + Kp[1, 2])
+                inside = hit & (z > 0) & (ui >= 0) & (ui < pattern.width) & (vi >= 0) & (vi < pattern.height)
+            val = np.zeros(z.shape)
             val[inside] = pat[vi[inside].astype(int), ui[inside].astype(int)]
             # cos of incidence: board normal vs direction to the projector centre (camera frame)
-            c_p = -projector.R.T @ projector.t
-            to_p = c_p - Xc[hit]
-            cosi = np.abs(to_p @ R[:, 2]) / np.linalg.norm(to_p, axis=1)
-            irr[hit] += projector_gain * val * cosi
+            to_p = (-projector.R.T @ projector.t) - Xc
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cosi = np.abs(to_p @ R[:, 2]) / np.linalg.norm(to_p, axis=-1)
+            irr = irr + projector_gain * np.where(inside, val * cosi, 0.0)
         rad = np.clip(alb * irr, 0.0, None)
         img = rad.reshape(H, ss, W, ss).mean(axis=(1, 3)) * 255.0
         if blur_sigma_px > 0:
@@ -915,3 +991,146 @@ def render_target_views(
         img = img + rng.normal(0.0, noise_sigma, img.shape)
         images.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
     return images
+
+
+def _visible(camera: PinholeCamera, R: np.ndarray, t: np.ndarray, pts_board: np.ndarray, margin: float) -> bool:
+    cam = PinholeCamera(camera.K, R, t, camera.width, camera.height, camera.dist)
+    if np.any(cam.to_camera(pts_board)[:, 2] <= 0.05):
+        return False
+    uv = cam.project(pts_board)
+    return bool(
+        np.all(np.isfinite(uv))
+        and np.all((uv[:, 0] >= margin) & (uv[:, 0] <= camera.width - 1 - margin))
+        and np.all((uv[:, 1] >= margin) & (uv[:, 1] <= camera.height - 1 - margin))
+    )
+
+
+def film_calibration_target(
+    camera: PinholeCamera,
+    rng: np.random.Generator,
+    *,
+    target: ChessboardTarget = ChessboardTarget(),
+    projector: PinholeCamera | None = None,
+    pattern: ProjectorPattern | None = None,
+    n_views: int = 10,
+    n_projector_views: int = 8,
+    board_to_world: np.ndarray | None = None,
+    max_tilt_deg: float = 30.0,
+    min_tilt_deg: float = 12.0,
+    supersample: int = 2,
+    blur_sigma_px: float = 0.7,
+    noise_sigma: float = 2.0,
+    max_tries: int = 200,
+) -> tuple[list[np.ndarray], list[np.ndarray | None], list[str]]:
+    """Film a calibration session of a synthetic scene (the reality side of calibration).
+
+    Views, in order: optionally the reference view (the target at ``board_to_world`` in the
+    scene's world frame; it then defines the world frame for :func:`calibrate_scene` with
+    ``reference_view=0``), ``n_views`` camera views with the printed board spread over the
+    image, and, with a projector, ``n_projector_views`` poses where the projector's pattern
+    lands on the blank part of the target (two images each: projector dark, projector on).
+
+    Args:
+        camera: the scene camera in world coordinates (``R, t`` world -> camera).
+        rng: random generator (poses and noise).
+        target: the calibration target.
+        projector: the projector in world coordinates (``R, t`` world -> projector), or ``None``.
+        pattern: the pattern it casts (required with ``projector``).
+        n_views: camera-only views.
+        n_projector_views: views with the pattern projected.
+        board_to_world: (4, 4) pose of the target in the world for the reference view, or
+            ``None`` for no reference view.
+        max_tilt_deg, min_tilt_deg: range of board tilts out of the fronto-parallel plane.
+        supersample, blur_sigma_px, noise_sigma: image formation, see :func:`render_target_views`.
+        max_tries: attempts to draw a pose that keeps the features in view.
+
+    Returns:
+        ``(target_images, projector_images, names)``: uint8 images; ``projector_images[i]`` is
+        ``None`` for views without the projector. Inputs of :func:`calibrate_scene`.
+
+    Raises:
+        CalibrationError: the reference pose does not show the board, or no valid pose is found.
+    """
+    if projector is not None and pattern is None:
+        raise CalibrationError("film_calibration_target: a projector needs a 'pattern'")
+    nx, ny = target.pattern_size
+    s = target.square_size
+    printed = np.array([[-s, -s, 0], [nx * s, -s, 0], [nx * s, ny * s, 0], [-s, ny * s, 0]], float)
+    printed_centre = np.array([(nx - 1) * s / 2, (ny - 1) * s / 2, 0.0])
+    fx = camera.K[0, 0]
+    poses: list[tuple[np.ndarray, np.ndarray]] = []
+    names: list[str] = []
+    with_projector: list[bool] = []
+    if board_to_world is not None:
+        Rw, tw = _board_to_world(board_to_world)
+        R_bc, t_bc = camera.R @ Rw, camera.R @ tw + camera.t
+        if not _visible(camera, R_bc, t_bc, printed, 2.0):
+            raise CalibrationError("film_calibration_target: the printed board at 'board_to_world' is not fully in view")
+        poses.append((R_bc, t_bc))
+        names.append("reference")
+        with_projector.append(False)
+    # camera views: printed board about half the image wide, spread over the image
+    z0 = fx * (nx + 1) * s / (0.5 * camera.width)
+    for i in range(int(n_views)):
+        for _ in range(max_tries):
+            z = z0 * rng.uniform(0.8, 1.3)
+            u = rng.uniform(0.25, 0.75) * camera.width
+            v = rng.uniform(0.25, 0.75) * camera.height
+            anchor = np.array([(u - camera.K[0, 2]) / fx * z, (v - camera.K[1, 2]) / camera.K[1, 1] * z, z])
+            R, t = board_poses_facing_camera(1, rng, printed_centre, anchor, max_tilt_deg, min_tilt_deg, jitter=0.0)[0]
+            if _visible(camera, R, t, printed, 4.0):
+                break
+        else:
+            raise CalibrationError(f"film_calibration_target: no pose keeps the board in view after {max_tries} tries")
+        poses.append((R, t))
+        names.append(f"view{i:02d}")
+        with_projector.append(False)
+    proj_cam = None
+    if projector is not None and n_projector_views > 0:
+        # projector relative to the camera: x_p = R_pc x_c + t_pc
+        R_pc = projector.R @ camera.R.T
+        proj_cam = PinholeCamera(projector.K, R_pc, projector.t - R_pc @ camera.t, projector.width, projector.height, projector.dist)
+        q = pattern.corners()
+        sq = pattern.square_px
+        frame = np.array([q.min(0) - sq, [q.max(0)[0] + sq, q.min(0)[1] - sq], q.max(0) + sq, [q.min(0)[0] - sq, q.max(0)[1] + sq]])
+        x0, x1, y0, y1 = target.board_extent
+        blank = (nx * s + s, x1, y0, y1)
+        blank_centre = np.array([(blank[0] + blank[1]) / 2, (blank[2] + blank[3]) / 2, 0.0])
+        fp = projector.K[0, 0]
+        span_px = np.ptp(frame, axis=0)
+        d = 0.7 * min((blank[1] - blank[0]) * fp / span_px[0], (blank[3] - blank[2]) * projector.K[1, 1] / span_px[1])
+        # aim: the pattern centre's projector ray at distance d from the projector (camera frame)
+        c = frame.mean(0)
+        ray = np.linalg.solve(projector.K, np.array([c[0], c[1], 1.0]))
+        ray /= np.linalg.norm(ray)
+        aim = proj_cam.R.T @ (d * ray - proj_cam.t)
+        for i in range(int(n_projector_views)):
+            for _ in range(max_tries):
+                R, t = board_poses_facing_camera(1, rng, blank_centre, aim, max_tilt_deg, min_tilt_deg, jitter=0.03)[0]
+                if not _visible(camera, R, t, printed, 4.0):
+                    continue
+                rays_p = np.linalg.solve(projector.K, np.column_stack([frame, np.ones(4)]).T).T  # projector frame
+                rays_c = rays_p @ proj_cam.R  # directions in the camera frame
+                origin = proj_cam.center
+                n = R[:, 2]
+                sdist = ((t - origin) @ n) / (rays_c @ n)
+                Xb = (origin + sdist[:, None] * rays_c - t) @ R
+                inside = (sdist > 0) & (Xb[:, 0] >= blank[0]) & (Xb[:, 0] <= blank[1]) & (Xb[:, 1] >= blank[2]) & (Xb[:, 1] <= blank[3])
+                if np.all(inside) and _visible(camera, R, t, Xb, 4.0):
+                    break
+            else:
+                raise CalibrationError(
+                    f"film_calibration_target: no pose puts the projected pattern on the blank target area after {max_tries} tries"
+                )
+            poses.append((R, t))
+            names.append(f"projector{i:02d}")
+            with_projector.append(True)
+    kw = dict(blur_sigma_px=blur_sigma_px, noise_sigma=noise_sigma, supersample=supersample)
+    target_images = render_target_views(camera, poses, target, rng, **kw)
+    projector_images: list[np.ndarray | None] = [None] * len(poses)
+    idx = [i for i, w in enumerate(with_projector) if w]
+    if idx:
+        lit = render_target_views(camera, [poses[i] for i in idx], target, rng, projector=proj_cam, pattern=pattern, **kw)
+        for i, im in zip(idx, lit):
+            projector_images[i] = im
+    return target_images, projector_images, names
