@@ -76,12 +76,13 @@ def test_fast_silhouettes_and_depth_match_pyrender_on_random_poses(renderer, rng
             dz.append(np.abs(ref.depth[both] - fast.depth[both]))
             np.testing.assert_array_equal(silhouette(V, F, cam), fast.mask)
     dz = np.concatenate(dz)
-    assert np.mean(ious) >= 0.99, ious
-    assert min(ious) >= 0.98, ious
+    # brief: mean IoU >= 0.99; measured 0.99998 (both sample pixel centres), so hold it tighter
+    assert np.mean(ious) >= 0.999, ious
+    assert min(ious) >= 0.995, ious
     # depth: both are camera z of the same planar triangles; differences come from the 24-bit
     # OpenGL depth buffer and edge pixels where the two z-tests pick different triangles
-    assert np.median(dz) < 0.2e-3, np.median(dz)       # metres: median below 0.2 mm
-    assert np.quantile(dz, 0.99) < 5e-3                 # 99 % within 5 mm (scene depth ~2.3 m)
+    assert np.median(dz) < 0.2e-3, np.median(dz)       # metres: median below 0.2 mm (measured 0.05 mm)
+    assert np.quantile(dz, 0.99) < 1e-3                 # 99 % within 1 mm (scene depth ~2.3 m; measured 0.11 mm)
 
 
 def _fronto_disc(X: np.ndarray, cam: PinholeCamera, radius: float, n: int = 48):
