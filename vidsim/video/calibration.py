@@ -58,6 +58,19 @@ _FIND_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.
 # --------------------------------------------------------------------------------------------
 # Target description
 # --------------------------------------------------------------------------------------------
+def _box_step(d: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Unit step box-filtered over width ``w``: a linear ramp in the signed distance ``d``."""
+    return np.clip(0.5 + d / w, 0.0, 1.0)
+
+
+def _box_parity(c: np.ndarray, s: float, w: np.ndarray) -> np.ndarray:
+    """``sign(sin(pi c / s))`` box-filtered over width ``w`` (same units as ``c`` and ``s``)."""
+    u = c / s
+    fu = u - np.floor(u)
+    sign = np.where(np.floor(u) % 2 == 0, 1.0, -1.0)
+    return np.clip(2.0 * sign * np.minimum(fu, 1.0 - fu) * s / w, -1.0, 1.0)
+
+
 @dataclass(frozen=True)
 class ChessboardTarget:
     """A white planar board with a printed chessboard and a blank area for projected patterns.
@@ -97,18 +110,38 @@ class ChessboardTarget:
         """(N, 3) inner corners in the board frame, metres, row-major (x fastest), z = 0."""
         return chessboard_object_points(self.pattern_size, self.square_size)
 
-    def albedo(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Albedo (0..1) at board-frame points ``x, y`` (any equal shapes, metres)."""
+    def albedo(self, x: np.ndarray, y: np.ndarray, footprint: np.ndarray | float | None = None) -> np.ndarray:
+        """Albedo (0..1) at board-frame points ``x, y`` (any equal shapes, metres).
+
+        Args:
+            x, y: board-frame coordinates, metres.
+            footprint: width (metres) of the box filter each sample stands for (scalar or the
+                shape of ``x``); edges become linear ramps of that width, which is the exact box
+                average across a straight edge. ``None``: hard edges (point samples).
+        """
         nx, ny = self.pattern_size
         s = self.square_size
-        a = np.floor(x / s) + 1  # square index along x, 0..nx on the print
-        b = np.floor(y / s) + 1
-        on_print = (a >= 0) & (a <= nx) & (b >= 0) & (b <= ny)
-        is_black = on_print & (((a + b) % 2) == 0)
+        if footprint is None:
+            a = np.floor(x / s) + 1  # square index along x, 0..nx on the print
+            b = np.floor(y / s) + 1
+            on_print = (a >= 0) & (a <= nx) & (b >= 0) & (b <= ny)
+            is_black = on_print & (((a + b) % 2) == 0)
+            x0, x1, y0, y1 = self.board_extent
+            on_board = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+            out = np.where(is_black, self.black, self.white)
+            return np.where(on_board, out, self.background)
+        w = np.maximum(np.asarray(footprint, float), 1e-12)
+
+        def step(d: np.ndarray) -> np.ndarray:
+            return _box_step(d, w)
+
+        # square (a, b) is black when a + b is even <=> sign(sin(pi x/s)) * sign(sin(pi y/s)) = +1
+        black = 0.5 * (1.0 + _box_parity(x, s, w) * _box_parity(y, s, w))
+        on_print = step(x + s) * step(nx * s - x) * step(y + s) * step(ny * s - y)
+        printed = self.white + (self.black - self.white) * black * on_print
         x0, x1, y0, y1 = self.board_extent
-        on_board = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
-        out = np.where(is_black, self.black, self.white)
-        return np.where(on_board, out, self.background)
+        on_board = step(x - x0) * step(x1 - x) * step(y - y0) * step(y1 - y)
+        return self.background + (printed - self.background) * on_board
 
 
 def chessboard_object_points(pattern_size: tuple[int, int], square_size: float) -> np.ndarray:
@@ -169,6 +202,26 @@ class ProjectorPattern:
         u0, v0 = self._origin()
         ij = np.mgrid[0:nx, 0:ny].T.reshape(-1, 2).astype(float)
         return np.stack([u0 - 0.5 + (ij[:, 0] + 1) * self.square_px, v0 - 0.5 + (ij[:, 1] + 1) * self.square_px], axis=1)
+
+    def radiance(self, u: np.ndarray, v: np.ndarray, footprint: np.ndarray | float) -> np.ndarray:
+        """Pattern value (0..1) at continuous projector pixel coordinates, box-filtered.
+
+        Equals :meth:`image` sampled at pixel centres when ``footprint`` is small; edges lie on
+        pixel boundaries, so the analytic form is the projector's raster exactly.
+
+        Args:
+            u, v: projector pixel coordinates (any equal shapes).
+            footprint: filter width in projector pixels (scalar or the shape of ``u``).
+        """
+        nx, ny = self.pattern_size
+        u0, v0 = self._origin()
+        s = float(self.square_px)
+        w = np.maximum(np.asarray(footprint, float), 1e-12)
+        xs, ys = u - (u0 - 0.5), v - (v0 - 0.5)
+        black = 0.5 * (1.0 + _box_parity(xs, s, w) * _box_parity(ys, s, w))
+        in_checker = _box_step(xs, w) * _box_step((nx + 1) * s - xs, w) * _box_step(ys, w) * _box_step((ny + 1) * s - ys, w)
+        in_frame = _box_step(xs + s, w) * _box_step((nx + 2) * s - xs, w) * _box_step(ys + s, w) * _box_step((ny + 2) * s - ys, w)
+        return in_frame * (1.0 - black * in_checker)
 
     def image(self) -> np.ndarray:
         """(height, width) float image in [0, 1]: checker (square (0, 0) black), white frame, black elsewhere."""
@@ -902,11 +955,16 @@ def _supersampled_rays(camera: PinholeCamera, ss: int) -> np.ndarray:
     if key in _RAY_CACHE:
         return _RAY_CACHE[key]
     _RAY_CACHE.clear()
-    off = (np.arange(ss) + 0.5) / ss - 0.5
-    u = (np.arange(camera.width)[:, None] + off[None, :]).ravel()
-    v = (np.arange(camera.height)[:, None] + off[None, :]).ravel()
-    uu, vv = np.meshgrid(u, v)
-    rays = pixel_rays(np.stack([uu.ravel(), vv.ravel()], 1), camera.K, camera.dist).reshape(len(v), len(u), 3)
+    # Undistort on a pixel grid with a one-pixel border, then interpolate bilinearly to the
+    # sub-pixel samples (cv2.resize maps dst x to src (x + 0.5) / ss - 0.5: the sample offsets).
+    u, v = np.meshgrid(np.arange(-1, camera.width + 1, dtype=float), np.arange(-1, camera.height + 1, dtype=float))
+    coarse = pixel_rays(np.stack([u.ravel(), v.ravel()], 1), camera.K, camera.dist).reshape(u.shape + (3,))
+    if ss == 1:
+        rays = np.ascontiguousarray(coarse[1:-1, 1:-1])
+    else:
+        fine = cv2.resize(coarse[..., :2], (u.shape[1] * ss, u.shape[0] * ss), interpolation=cv2.INTER_LINEAR)
+        fine = fine[ss:-ss, ss:-ss]
+        rays = np.concatenate([fine, np.ones(fine.shape[:2] + (1,))], axis=2)
     rays.flags.writeable = False
     _RAY_CACHE[key] = rays
     return rays
@@ -924,15 +982,17 @@ def render_target_views(
     projector_gain: float = 0.45,
     blur_sigma_px: float = 0.7,
     noise_sigma: float = 2.0,
-    supersample: int = 3,
+    supersample: int = 1,
 ) -> list[np.ndarray]:
     """Render 8-bit grayscale images of the target as seen by ``camera`` at several poses.
 
     Ray-plane intersection for ``supersample`` x ``supersample`` samples per pixel through the
-    camera's distorted lens (so the images carry its distortion), box-averaged per pixel, then a
-    Gaussian optical blur and Gaussian sensor noise. Radiance is ``albedo * (ambient +
-    projector_gain * pattern * cos(incidence))``; with a projector, the pattern pixel under a
-    board point is found by projecting the point into the projector (nearest projector pixel).
+    camera's distorted lens (so the images carry its distortion); each sample carries the box
+    average of the board texture and of the projected pattern over its footprint (analytic edge
+    ramps, so edges are not aliased even at ``supersample=1``); samples are averaged per pixel,
+    then a Gaussian optical blur and Gaussian sensor noise are applied. Radiance is
+    ``albedo * (ambient + projector_gain * pattern * cos(incidence))``, with the pattern value
+    found by projecting each board point into the projector.
 
     Args:
         camera: the camera; its ``R, t`` are ignored (poses are board -> camera).
@@ -945,7 +1005,8 @@ def render_target_views(
         projector_gain: projector irradiance at normal incidence.
         blur_sigma_px: optical blur, pixels (0: none).
         noise_sigma: sensor noise standard deviation, grey levels.
-        supersample: samples per pixel along each axis.
+        supersample: samples per pixel along each axis (edges are box-filtered analytically,
+            so 1 already gives corners within 0.1 px of the true projection).
 
     Returns:
         V images (H, W) uint8.
@@ -956,15 +1017,17 @@ def render_target_views(
         raise CalibrationError(f"render_target_views: supersample must be >= 1, got {supersample}")
     rays = _supersampled_rays(camera, int(supersample))
     H, W, ss = camera.height, camera.width, int(supersample)
-    pat = pattern.image() if pattern is not None else None
     images = []
     for R, t in poses:
         R = np.asarray(R, float)
         t = np.asarray(t, float).ravel()
         Xc, Xb = intersect_board(rays, R, t)
         hit = np.isfinite(Xb[..., 0])
-        with np.errstate(invalid="ignore"):
-            alb = np.where(hit, target.albedo(Xb[..., 0], Xb[..., 1]), target.background)
+        # board footprint of one sample: (depth / f / ss) / sqrt(cos incidence), isotropic
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cos_c = np.abs(rays @ R[:, 2]) / np.linalg.norm(rays, axis=-1)
+            foot = Xc[..., 2] / (camera.K[0, 0] * ss) / np.sqrt(np.maximum(cos_c, 0.05))
+            alb = np.where(hit, target.albedo(Xb[..., 0], Xb[..., 1], foot), target.background)
         irr = np.full(Xb.shape[:2], float(ambient))
         if projector is not None:
             Xp = Xc @ projector.R.T + projector.t
@@ -974,11 +1037,11 @@ def render_target_views(
                 if np.any(projector.dist):
                     x, y = distort_normalized(x, y, projector.dist)
                 Kp = projector.K
-                ui = np.rint(Kp[0, 0] * x + Kp[0, 1] * y + Kp[0, 2])
-                vi = np.rint(Kp[1, 1] * y + Kp[1, 2])
-                inside = hit & (z > 0) & (ui >= 0) & (ui < pattern.width) & (vi >= 0) & (vi < pattern.height)
-            val = np.zeros(z.shape)
-            val[inside] = pat[vi[inside].astype(int), ui[inside].astype(int)]
+                up = Kp[0, 0] * x + Kp[0, 1] * y + Kp[0, 2]
+                vp = Kp[1, 1] * y + Kp[1, 2]
+                inside = hit & (z > 0) & np.isfinite(up) & np.isfinite(vp)
+                # footprint of the camera sample in projector pixels
+                val = np.where(inside, pattern.radiance(np.where(inside, up, -1e6), np.where(inside, vp, -1e6), foot * Kp[0, 0] / np.abs(z)), 0.0)
             # cos of incidence: board normal vs direction to the projector centre (camera frame)
             to_p = (-projector.R.T @ projector.t) - Xc
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -1017,7 +1080,7 @@ def film_calibration_target(
     board_to_world: np.ndarray | None = None,
     max_tilt_deg: float = 30.0,
     min_tilt_deg: float = 12.0,
-    supersample: int = 2,
+    supersample: int = 1,
     blur_sigma_px: float = 0.7,
     noise_sigma: float = 2.0,
     max_tries: int = 200,
