@@ -63,3 +63,41 @@ def test_cluster_generic_executor_runs_jobs_as_separate_processes(tmp_path, shar
 
     K = yaml.safe_load(calib.read_text())["camera"]["K"]
     assert abs(K[0][0] - 535.9) < 1.0
+
+
+def _planned_jobs(out: str) -> set[str]:
+    """Rule names in the job-count table of a dry run."""
+    jobs, in_table = set(), False
+    for line in out.splitlines():
+        if line.startswith("job ") and "count" in line:
+            in_table = True
+            continue
+        if in_table:
+            parts = line.split()
+            if not parts or parts[0] == "total":
+                break
+            if parts[0].startswith("-"):
+                continue
+            jobs.add(parts[0])
+    return jobs
+
+
+@pytest.mark.slow
+def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_data):
+    res = tmp_path / "results"
+    base = f"results: {res}\nshared_data: {shared_data}\nhydra_overrides: 'log.rerun=false'\n"
+    cfg = tmp_path / "a.yaml"
+    cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: ''}\n")
+    r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--cores", "2")
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    # nothing changed: nothing to do
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    assert _planned_jobs(r.stdout + r.stderr) == set(), r.stdout
+    # one value of the footage stage changes: it (and `all`) rerun, the calibrations do not
+    cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: 'render.noise_sigma=4'}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    assert _planned_jobs(r.stdout + r.stderr) == {"reality_demo", "all"}, r.stdout
+    # the scene calibration changes: the footage made from it reruns too, the chessboard does not
+    cfg.write_text(base + "overrides: {calibrate_scene: 'calibrate.n_views=8', reality_demo: ''}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    assert _planned_jobs(r.stdout + r.stderr) == {"calibrate_scene", "reality_demo", "all"}, r.stdout

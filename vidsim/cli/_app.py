@@ -35,6 +35,12 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
 
     @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
     def _main(cfg: DictConfig) -> None:
+        # Reproducible numbers: OpenCV's parallel loops sum in a thread-dependent order (seen as
+        # 1e-11 differences between identical calibrations); stages run its code single-threaded
+        # (VIDSIM_OPENCV_THREADS overrides, at the price of bit-exact reruns).
+        import cv2
+
+        cv2.setNumThreads(int(os.environ.get("VIDSIM_OPENCV_THREADS", "1")))
         try:
             validate(cfg)
             run(cfg)

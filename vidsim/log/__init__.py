@@ -158,8 +158,27 @@ class RerunLogger:
         self._closed = True
 
 
+class _PlaceholderRerunLogger(RerunLogger):
+    """Recording switched off (``log.rerun=false``): the declared ``.rrd`` still appears, holding
+    one text entry that says so, so the DAG's outputs are the same either way."""
+
+    def __init__(self, path: str | os.PathLike, app_id: str) -> None:
+        super().__init__(path, app_id)
+        RerunLogger.text(self, "log", "recording disabled (log.rerun=false)")
+
+    def __getattribute__(self, name: str):
+        if name in ("close", "abort", "__enter__", "__exit__") or name.startswith("_") or name in ("rec", "path"):
+            return object.__getattribute__(self, name)
+        if callable(getattr(RerunLogger, name, None)):
+            return lambda *a, **k: None
+        return object.__getattribute__(self, name)
+
+
 def make_logger(path: str | os.PathLike | None, app_id: str, enabled: bool = True) -> RerunLogger | NullLogger:
-    """A :class:`RerunLogger` writing ``path``, or a :class:`NullLogger` when disabled or no path."""
-    if not enabled or path is None:
+    """A :class:`RerunLogger` writing ``path``; with ``enabled=False`` a placeholder recording
+    (so declared outputs exist); a :class:`NullLogger` when ``path`` is None."""
+    if path is None:
         return NullLogger()
+    if not enabled:
+        return _PlaceholderRerunLogger(path, app_id)
     return RerunLogger(path, app_id)

@@ -19,7 +19,7 @@ rule calibrate_chessboard:
         ),
     params:
         out=get_out_dir,
-        extra=HYDRA_EXTRA,
+        extra=stage_overrides("calibrate_chessboard"),
     log:
         f"{RESULTS}/logs/calibrate_chessboard.log",
     conda:
@@ -44,7 +44,7 @@ rule calibrate_scene:
         rrd=f"{RESULTS}/calibration/{{scene}}/calibrate.rrd",
     params:
         out=get_out_dir,
-        extra=HYDRA_EXTRA,
+        extra=stage_overrides("calibrate_scene"),
     log:
         f"{RESULTS}/logs/calibrate_{{scene}}.log",
     conda:

@@ -6,6 +6,16 @@ SHARED = Path(config.get("shared_data", "../shared/data"))
 HYDRA_EXTRA = config.get("hydra_overrides", "")
 
 
+def stage_overrides(stage):
+    """Hydra overrides for one stage: the global ones, then `overrides: {<stage>: "..."}` from the config.
+
+    They are a rule parameter, so changing a stage's overrides reruns that stage and what
+    depends on it (rerun trigger `params`), and nothing else.
+    """
+    own = config.get("overrides", {}).get(stage, "") or ""
+    return f"{HYDRA_EXTRA} {own}".strip()
+
+
 def stage_enabled(name):
     return bool(config.get("stages", {}).get(name, False))
 

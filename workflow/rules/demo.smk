@@ -17,7 +17,7 @@ rule reality_demo:
         rrd=f"{RESULTS}/footage/{{scene}}/reality.rrd",
     params:
         out=get_out_dir,
-        extra=HYDRA_EXTRA,
+        extra=stage_overrides("reality_demo"),
     log:
         f"{RESULTS}/logs/reality_{{scene}}.log",
     conda:
