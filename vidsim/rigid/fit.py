@@ -71,9 +71,12 @@ class FitConfig:
     """Optimiser settings (Hydra-friendly plain fields).
 
     Attributes:
-        screen: stages run for every start (cheap: coarse, early frames).
-        refine: stages run for the ``n_keep`` best starts.
-        n_keep: starts that survive the screen.
+        screen: stages run for the starts (cheap: coarse, early frames).
+        screen_keep: after screen stage ``i`` only the ``screen_keep[i]`` best starts go on; the
+            last entry is the number of candidates that are refined.
+        refine: stages run for the surviving candidates.
+        final: full-resolution polish, run for the candidates whose cost after ``refine`` is
+            within ``final_ratio`` times the best.
         multistart: "icosahedral" (60 orientations around the guess) or "none" (the guess only).
         hmax: RK4 step bound, seconds.
         distinct_deg: two solutions are distinct when their orientations (modulo symmetry) differ
@@ -83,12 +86,14 @@ class FitConfig:
     """
 
     screen: list[Stage] = field(default_factory=lambda: [
-        Stage(0.25, 10, 25, 1.0, 1.0), Stage(0.25, 20, 25, 1.0, 1.0)])
+        Stage(0.25, 10, 20, 1.0, 1.0), Stage(0.25, 20, 25, 1.0, 1.0)])
+    screen_keep: list[int] = field(default_factory=lambda: [8, 3])
     refine: list[Stage] = field(default_factory=lambda: [
-        Stage(0.25, None, 40, 1.0, 1.0), Stage(0.5, None, 40, 0.3, 1.0), Stage(1.0, None, 40, 0.0, 1.0)])
-    n_keep: int = 3
+        Stage(0.25, None, 30, 1.0, 1.0), Stage(0.5, None, 30, 0.3, 1.0)])
+    final: list[Stage] = field(default_factory=lambda: [Stage(1.0, None, 20, 0.0, 1.0)])
+    final_ratio: float = 2.0
     multistart: str = "icosahedral"
-    hmax: float = 1.0 / 120.0
+    hmax: float = 1.0 / 60.0
     distinct_deg: float = 10.0
     tie_iou: float = 0.01
     dist_scale: float = 20.0
@@ -102,9 +107,11 @@ class FitConfig:
         for k, v in d.items():
             if not hasattr(cfg, k):
                 raise RigidBodyError(f"fit config: unknown field '{k}' (known: {sorted(vars(cfg))})")
-            if k in ("screen", "refine"):
+            if k in ("screen", "refine", "final"):
                 v = [s if isinstance(s, Stage) else Stage(**s) for s in v]
             setattr(cfg, k, v)
+        if len(cfg.screen_keep) != len(cfg.screen) or min(cfg.screen_keep, default=1) < 1:
+            raise RigidBodyError(f"fit config: 'screen_keep' {cfg.screen_keep} needs one count >= 1 per screen stage")
         if cfg.multistart not in ("icosahedral", "none"):
             raise RigidBodyError(f"fit config: 'multistart' must be 'icosahedral' or 'none', got {cfg.multistart!r}")
         return cfg
@@ -205,7 +212,7 @@ class SilhouetteObjective:
 
     def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, masks: np.ndarray, t0: float,
                  scale: float = 1.0, lam: float = 0.0, ramp: float = 1.0, dist_scale: float = 20.0,
-                 hmax: float = 1.0 / 120.0) -> None:
+                 hmax: float = 1.0 / 60.0) -> None:
         self.body = body
         self.cam = cam if scale == 1.0 else cam.scaled(scale)
         self.times = np.asarray(times, float)
@@ -244,7 +251,7 @@ class SilhouetteObjective:
 
 
 def silhouette_iou(p: np.ndarray, q_base: np.ndarray, body: BoxBody, cam: PinholeCamera, times: np.ndarray,
-                   t0: float, masks: np.ndarray, hmax: float = 1.0 / 120.0) -> np.ndarray:
+                   t0: float, masks: np.ndarray, hmax: float = 1.0 / 60.0) -> np.ndarray:
     """Per-frame IoU (T,) of the simulated hard silhouettes against ``masks`` (T, H, W) bool."""
     tr = simulate(p, q_base, body.inertia, times, t0, hmax, sensitivities=False)
     if not tr.ok:
@@ -411,20 +418,27 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
 
     R_guess = quat_to_rot(q_guess)
     starts = start_orientations(R_guess, body.symmetries, cfg.multistart)
-    screened = []
-    for i, R in enumerate(starts):
-        p, q, hist = p_guess.copy(), rot_to_quat(R), []
-        E = FAIL_COST
-        for st in cfg.screen:
+    pool = [(FAIL_COST, i, p_guess.copy(), rot_to_quat(R), []) for i, R in enumerate(starts)]
+    for st, keep in zip(cfg.screen, cfg.screen_keep):
+        nxt = []
+        for E, i, p, q, hist in pool:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
-            hist += h
-        screened.append((E, i, p, q, hist))
-    screened.sort(key=lambda s: s[0])
-    cands: list[Candidate] = []
-    for E, i, p, q, hist in screened[: max(1, cfg.n_keep)]:
+            nxt.append((E, i, p, q, hist + h))
+        nxt.sort(key=lambda s: s[0])
+        pool = nxt[:keep]
+    refined = []
+    for E, i, p, q, hist in pool:
         for st in cfg.refine:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
             hist = hist + h
+        refined.append((E, i, p, q, hist))
+    E_best = min(r[0] for r in refined)
+    cands: list[Candidate] = []
+    for E, i, p, q, hist in refined:
+        if E <= cfg.final_ratio * E_best or not cands:
+            for st in cfg.final:
+                p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
+                hist = hist + h
         iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax)
         cands.append(Candidate(p, q, float(E), float(iou.mean()), iou, hist, i))
     cands.sort(key=lambda c: (-c.mean_iou, c.cost))

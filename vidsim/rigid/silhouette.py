@@ -128,7 +128,6 @@ def _frame_cost(Pc: np.ndarray, nb: int, K: np.ndarray, dist: np.ndarray, use_di
     edges = np.zeros((nb, 16, 3))
     ne = np.zeros(nb, np.int64)
     bb = np.zeros((nb, 4))
-    u0, v0, u1, v1 = 1e18, 1e18, -1e18, -1e18
     for b in range(nb):
         pts = uv[8 * b:8 * b + 8]
         E, m = _edges(pts)
@@ -138,37 +137,42 @@ def _frame_cost(Pc: np.ndarray, nb: int, K: np.ndarray, dist: np.ndarray, use_di
         bb[b, 1] = pts[:, 1].min() - ramp
         bb[b, 2] = pts[:, 0].max() + ramp
         bb[b, 3] = pts[:, 1].max() + ramp
-        u0 = min(u0, bb[b, 0])
-        v0 = min(v0, bb[b, 1])
-        u1 = max(u1, bb[b, 2])
-        v1 = max(v1, bb[b, 3])
-    j0 = max(0, int(np.floor(u0)))
-    j1 = min(Ww - 1, int(np.ceil(u1)))
-    i0 = max(0, int(np.floor(v0)))
-    i1 = min(Hh - 1, int(np.ceil(v1)))
     cost = 0.0
-    for i in range(i0, i1 + 1):
-        for j in range(j0, j1 + 1):
-            a = 0.0
-            for b in range(nb):
-                if j < bb[b, 0] or j > bb[b, 2] or i < bb[b, 1] or i > bb[b, 3]:
+    for b0 in range(nb):
+        # visit each part's own bounding box; a pixel shared with an earlier part's box was done there
+        j0 = max(0, int(np.ceil(bb[b0, 0])))
+        j1 = min(Ww - 1, int(np.floor(bb[b0, 2])))
+        i0 = max(0, int(np.ceil(bb[b0, 1])))
+        i1 = min(Hh - 1, int(np.floor(bb[b0, 3])))
+        for i in range(i0, i1 + 1):
+            for j in range(j0, j1 + 1):
+                seen = False
+                for b in range(b0):
+                    if j >= bb[b, 0] and j <= bb[b, 2] and i >= bb[b, 1] and i <= bb[b, 3]:
+                        seen = True
+                        break
+                if seen:
                     continue
-                sd = -1e18
-                for e in range(ne[b]):
-                    d = edges[b, e, 0] * j + edges[b, e, 1] * i - edges[b, e, 2]
-                    if d > sd:
-                        sd = d
-                c = 0.5 - sd / ramp
-                if c > a:
-                    a = c
-            if a <= 0.0:
-                continue
-            if a > 1.0:
-                a = 1.0
-            if mode == 0:
-                cost += a * Wmap[i, j]
-            else:
-                out_img[i, j] = max(out_img[i, j], a)
+                a = 0.0
+                for b in range(b0, nb):
+                    if j < bb[b, 0] or j > bb[b, 2] or i < bb[b, 1] or i > bb[b, 3]:
+                        continue
+                    sd = -1e18
+                    for e in range(ne[b]):
+                        d = edges[b, e, 0] * j + edges[b, e, 1] * i - edges[b, e, 2]
+                        if d > sd:
+                            sd = d
+                    c = 0.5 - sd / ramp
+                    if c > a:
+                        a = c
+                if a <= 0.0:
+                    continue
+                if a > 1.0:
+                    a = 1.0
+                if mode == 0:
+                    cost += a * Wmap[i, j]
+                else:
+                    out_img[i, j] = max(out_img[i, j], a)
     return cost
 
 
