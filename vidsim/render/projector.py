@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-from vidsim.render.raster import DEFAULT_NEAR, RasterError, _check_cam, _check_mesh, _run, face_normals
+from vidsim.render.raster import DEFAULT_NEAR, RasterError, _check_cam, _check_mesh, _raster_frame, face_normals
 from vidsim.video.camera import PinholeCamera, distort_normalized
 
 __all__ = [
@@ -327,7 +327,11 @@ def render_stripes_batch(
     Vs: np.ndarray, F: np.ndarray, cam: PinholeCamera, projector: Projector, *,
     shadows: bool = True, near: float = DEFAULT_NEAR,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Fast-path striped images of T frames of a mesh (rasteriser + :func:`shade_stripes`).
+    """Fast-path striped images of T frames of a mesh.
+
+    One compiled loop per call: camera z-buffer, projector shadow map, face normals and
+    shading per frame with reused buffers; the result equals :func:`rasterize` +
+    :func:`shade_stripes` frame by frame (tested).
 
     Args:
         Vs: (T, N, 3) world vertices per frame, metres.
@@ -347,15 +351,76 @@ def render_stripes_batch(
         _check_cam(projector.cam)
     except RasterError as e:
         raise ProjectorError(str(e)) from e
-    depth, face, _, _ = _run(Vs, F, cam, near, 1)
-    dproj = _run(Vs, F, projector.cam, near, 1)[0] if shadows else None
-    normals = face_normals(Vs, F)
-    rays = _cached_rays(cam) if np.any(cam.dist) else None
-    out = np.empty_like(depth)
-    for k in range(Vs.shape[0]):
-        out[k] = shade_stripes(depth[k], cam, projector, normals[k], None if dproj is None else dproj[k],
-                               face=face[k], rays=rays)
+    near = float(near)
+    if not np.isfinite(near) or near <= 0:
+        raise ProjectorError(f"'near' must be a positive distance in metres, got {near}")
+    T = Vs.shape[0]
+    H, W = cam.height, cam.width
+    pc = projector.cam
+    use_rays = bool(np.any(cam.dist))
+    rays = _cached_rays(cam) if use_rays else np.empty((1, 1, 2))
+    depth = np.empty((T, H, W), np.float32)
+    out = np.empty((T, H, W), np.float32)
+    _stripes_batch(Vs, F, cam.R, cam.t, cam.K, cam.dist, use_rays, rays, np.linalg.inv(cam.K),
+                   pc.K, pc.R, pc.t, pc.dist, pc.height, pc.width, bool(shadows), near,
+                   projector.period_px, projector.phase / (2 * np.pi), projector.duty, projector.power,
+                   projector.ambient, projector.shadow_bias, depth, out)
     return out, depth
+
+
+@njit(cache=True)
+def _stripes_batch(Vs, F, Rc, tc, Kc, distc, use_rays, rays, Kinv, Kp, Rp, tp, distp, Hp, Wp, shadows, near,
+                   period, phase_frac, duty, power, ambient, bias, depth, out):
+    """Fused per-frame camera raster + projector shadow map + shading, reusing buffers."""
+    T, N = Vs.shape[0], Vs.shape[1]
+    H, W = depth.shape[1], depth.shape[2]
+    M = F.shape[0]
+    Xc = np.empty((N, 3))
+    Xp = np.empty((N, 3))
+    face = np.empty((H, W), np.int32)
+    zp = np.empty((Hp, Wp), np.float32) if shadows else np.empty((1, 1), np.float32)
+    fp = np.empty((Hp, Wp), np.int32) if shadows else np.empty((1, 1), np.int32)
+    nrm = np.empty((M, 3))
+    dummy_b = np.empty((1, 1, 2), np.float32)
+    dummy_m = np.empty((1, 1), np.bool_)
+    use_dist_c = _any_nonzero(distc)
+    use_dist_p = _any_nonzero(distp)
+    for fr in range(T):
+        for i in range(N):
+            for r in range(3):
+                Xc[i, r] = Rc[r, 0] * Vs[fr, i, 0] + Rc[r, 1] * Vs[fr, i, 1] + Rc[r, 2] * Vs[fr, i, 2] + tc[r]
+        zc = depth[fr]
+        zc[:, :] = np.inf
+        face[:, :] = -1
+        _raster_frame(Xc, F, Kc, distc, use_dist_c, near, H, W, 1, zc, face, dummy_b, dummy_m)
+        if shadows:
+            for i in range(N):
+                for r in range(3):
+                    Xp[i, r] = Rp[r, 0] * Vs[fr, i, 0] + Rp[r, 1] * Vs[fr, i, 1] + Rp[r, 2] * Vs[fr, i, 2] + tp[r]
+            zp[:, :] = np.inf
+            _raster_frame(Xp, F, Kp, distp, use_dist_p, near, Hp, Wp, 1, zp, fp, dummy_b, dummy_m)
+        for f in range(M):
+            a, b, c = F[f, 0], F[f, 1], F[f, 2]
+            e1x = Vs[fr, b, 0] - Vs[fr, a, 0]
+            e1y = Vs[fr, b, 1] - Vs[fr, a, 1]
+            e1z = Vs[fr, b, 2] - Vs[fr, a, 2]
+            e2x = Vs[fr, c, 0] - Vs[fr, a, 0]
+            e2y = Vs[fr, c, 1] - Vs[fr, a, 1]
+            e2z = Vs[fr, c, 2] - Vs[fr, a, 2]
+            nrm[f, 0] = e1y * e2z - e1z * e2y
+            nrm[f, 1] = e1z * e2x - e1x * e2z
+            nrm[f, 2] = e1x * e2y - e1y * e2x
+        _shade(zc, rays, use_rays, Kinv, face, nrm, Rc, tc, Kp, Rp, tp, distp, use_dist_p, Hp, Wp, zp,
+               shadows, period, phase_frac, duty, power, ambient, bias, out[fr])
+
+
+@njit(cache=True)
+def _any_nonzero(dist):
+    """True when any distortion coefficient is non-zero."""
+    for q in range(dist.shape[0]):
+        if dist[q] != 0.0:
+            return True
+    return False
 
 
 def render_stripes(

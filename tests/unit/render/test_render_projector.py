@@ -179,3 +179,26 @@ def test_projector_rejects_bad_fields():
         Projector("projector")
     with pytest.raises(ProjectorError, match="depth_cam"):
         shade_stripes(np.ones((3, 3)), _camera(), _projector(), np.zeros((3, 3, 3)), None)
+
+
+@pytest.mark.parametrize("dist", [None, (-0.15, 0.03, 0.001, 0.0, 0.0)])
+def test_fused_batch_equals_raster_plus_shade_per_frame(rng, dist):
+    from vidsim.render.projector import render_stripes_batch
+
+    cam = _camera()
+    if dist is not None:
+        cam = PinholeCamera(cam.K, cam.R, cam.t, W, H, np.array(dist))
+    proj = _projector()
+    wall = _wall()
+    Vs, F = [], None
+    for _ in range(3):
+        box = prim.box((0.3, 0.2, 0.4), tuple(rng.uniform([-0.4, -0.6, -0.2], [0.2, -0.3, 0.2])))
+        V, F = prim.merge(wall, box)
+        Vs.append(V)
+    Vs = np.stack(Vs)
+    irr, depth = render_stripes_batch(Vs, F, cam, proj)
+    for k in range(3):
+        r = rasterize(Vs[k], F, cam)
+        ref = shade_stripes(r.depth, cam, proj, face_normals(Vs[k], F), rasterize(Vs[k], F, proj.cam).depth, face=r.face)
+        np.testing.assert_array_equal(depth[k], r.depth)
+        np.testing.assert_allclose(irr[k], ref, atol=1e-6)
