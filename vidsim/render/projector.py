@@ -22,6 +22,10 @@ bias) or when ``X`` falls outside the projector image. ``I`` is a linear radiome
 (no gamma, no noise, no blur; sensor effects belong to the reality code). Background pixels
 (``depth = inf``) get 0. With ``power`` in units of "intensity at 1 m", a surface facing a
 projector 1 m away on a bright stripe gets ``ambient + power``.
+
+Numba note: the fused batch kernel inlines the rasteriser of :mod:`vidsim.render.raster`;
+numba's on-disk cache does not notice edits in another module, so after changing
+``raster.py`` clear ``vidsim/render/__pycache__/*.nbi|*.nbc`` (CI starts cold anyway).
 """
 
 from __future__ import annotations
