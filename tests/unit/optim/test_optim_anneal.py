@@ -1,0 +1,92 @@
+"""Simulated annealing, grid, evaluation cache: recovery on known functions; NaN-safety; replay."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vidsim.errors import ConfigError
+from vidsim.optim import FAILED_SCORE
+from vidsim.optim.anneal import AnnealConfig, anneal
+from vidsim.optim.cache import EvalCache
+from vidsim.optim.grid import grid_points, grid_search
+from vidsim.optim.space import Axis, Space
+
+
+def rosenbrock(u):
+    x = 4 * np.asarray(u) - 2  # [-2, 2]^n, minimum at (1, ..., 1) -> u = 0.75
+    return float(np.sum(100 * (x[1:] - x[:-1] ** 2) ** 2 + (1 - x[:-1]) ** 2))
+
+
+def rastrigin(u):
+    x = 10.24 * np.asarray(u) - 5.12 - 0.9  # shifted minimum
+    x = x + 0.9
+    return float(10 * x.size + np.sum(x * x - 10 * np.cos(2 * np.pi * x)))
+
+
+def test_anneal_finds_rosenbrock_minimum():
+    r = anneal(rosenbrock, np.array([0.2, 0.3, 0.25]), AnnealConfig(budget=3000, seed=1))
+    assert r.n_evals == 3000
+    assert r.best_f < 1e-2
+    assert np.allclose(r.best_u, 0.75, atol=0.03)
+    assert np.all(np.diff(r.best_trace) <= 0)
+    assert len(r.resets) >= 1  # the schedule reached at least one simplex reset
+
+
+def test_anneal_escapes_local_minima_better_than_zero_temperature():
+    """Rastrigin from a poor start: with temperature, annealing ends lower than plain simplex (T ~ 0)."""
+    u0 = np.full(4, 0.15)
+    hot = [anneal(rastrigin, u0, AnnealConfig(budget=800, seed=s, T0=20.0)).best_f for s in range(4)]
+    cold = [anneal(rastrigin, u0, AnnealConfig(budget=800, seed=s, T0=1e-9)).best_f for s in range(4)]
+    assert np.median(hot) < np.median(cold)
+
+
+def test_failed_evaluations_are_bad_scores_not_crashes():
+    def sometimes_nan(u):  # "diverges" beyond u0 = 0.6, the optimum (0.58, 0.4) sits near that edge
+        if u[0] > 0.6:
+            return float("nan")
+        return float(np.sum((u - [0.58, 0.4]) ** 2))
+
+    with EvalCache(sometimes_nan) as f:
+        r = anneal(f, np.array([0.2, 0.2]), AnnealConfig(budget=300, seed=0))
+    assert np.isfinite(r.best_f) and r.best_f < 1e-4
+    assert FAILED_SCORE in r.trace  # the NaN region was visited and scored as failed
+    assert not np.any(np.isnan(r.trace))
+
+
+def test_replay_through_cache_gives_identical_run(tmp_path):
+    calls = {"n": 0}
+
+    def counted(u):
+        calls["n"] += 1
+        return rosenbrock(u)
+
+    log = tmp_path / "evals.jsonl"
+    with EvalCache(counted, log) as f:
+        anneal(f, np.array([0.2, 0.3]), AnnealConfig(budget=120, seed=3))
+    first = calls["n"]
+    # a "killed" run: keep only the first 70 lines (plus a torn line), then rerun with a larger budget
+    lines = log.read_text().splitlines()[:70]
+    log.write_text("\n".join(lines) + '\n{"key": "torn')
+    calls["n"] = 0
+    with EvalCache(counted, log) as f:
+        resumed = anneal(f, np.array([0.2, 0.3]), AnnealConfig(budget=120, seed=3))
+    with EvalCache(rosenbrock) as f:
+        fresh = anneal(f, np.array([0.2, 0.3]), AnnealConfig(budget=120, seed=3))
+    assert calls["n"] == first - 70  # only the evaluations after the kill point were recomputed
+    assert resumed.best_f == fresh.best_f and np.array_equal(resumed.best_u, fresh.best_u)
+    assert np.array_equal(resumed.trace, fresh.trace)
+
+
+def test_grid_search_and_space():
+    sp = Space((Axis("k", 1e-6, 1e-2, log=True), Axis("d", 0.0, 10.0)))
+    th = np.array([1e-4, 2.5])
+    assert np.allclose(sp.from_unit(sp.to_unit(th)), th)
+    assert np.allclose(sp.to_unit(th), [0.5, 0.25])
+    pts = grid_points([0, 1], levels=4, n=2)
+    vals, best = grid_search(lambda u: float(np.sum((u - [0.62, 0.4]) ** 2)), pts)
+    assert pts.shape == (16, 2) and np.allclose(best, [0.625, 0.375])
+    with pytest.raises(ConfigError, match="'k'"):
+        Axis("k", 0.0, 1.0, log=True)
+    with pytest.raises(ConfigError, match="budget"):
+        AnnealConfig(budget=0)

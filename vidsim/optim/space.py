@@ -1,0 +1,72 @@
+"""Parameter spaces: named axes with bounds, linear or logarithmic, mapped to the unit cube."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vidsim.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One parameter: ``name``, bounds ``lo < hi`` (in the parameter's unit), ``log`` spacing."""
+
+    name: str
+    lo: float
+    hi: float
+    log: bool = False
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lo) and math.isfinite(self.hi) and self.lo < self.hi):
+            raise ConfigError(f"parameter '{self.name}': bounds must be finite with lo < hi, got [{self.lo}, {self.hi}]")
+        if self.log and self.lo <= 0:
+            raise ConfigError(f"parameter '{self.name}': a log axis needs lo > 0, got {self.lo}")
+
+
+@dataclass(frozen=True)
+class Space:
+    """A box of parameters. ``to_unit``/``from_unit`` map (n,) or (m, n) arrays."""
+
+    axes: tuple[Axis, ...]
+
+    @property
+    def names(self) -> list[str]:
+        return [a.name for a in self.axes]
+
+    @property
+    def dim(self) -> int:
+        return len(self.axes)
+
+    def _lo_hi(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        lg = np.array([a.log for a in self.axes])
+        lo = np.array([math.log(a.lo) if a.log else a.lo for a in self.axes])
+        hi = np.array([math.log(a.hi) if a.log else a.hi for a in self.axes])
+        return lo, hi, lg
+
+    def to_unit(self, theta: np.ndarray) -> np.ndarray:
+        lo, hi, lg = self._lo_hi()
+        th = np.asarray(theta, float)
+        v = np.where(lg, np.log(np.maximum(th, 1e-300)), th)
+        return (v - lo) / (hi - lo)
+
+    def from_unit(self, u: np.ndarray) -> np.ndarray:
+        lo, hi, lg = self._lo_hi()
+        v = lo + np.clip(np.asarray(u, float), 0.0, 1.0) * (hi - lo)
+        return np.where(lg, np.exp(v), v)
+
+    def as_dict(self, theta: np.ndarray) -> dict[str, float]:
+        return {a.name: float(x) for a, x in zip(self.axes, np.asarray(theta, float))}
+
+    @classmethod
+    def from_config(cls, d: dict) -> "Space":
+        """From ``{name: {lo, hi, log}}`` (a Hydra node converted to a dict)."""
+        axes = []
+        for name, spec in d.items():
+            unknown = set(spec) - {"lo", "hi", "log"}
+            if unknown:
+                raise ConfigError(f"parameter '{name}': unknown key(s) {sorted(unknown)} (expected lo, hi, log)")
+            axes.append(Axis(name, float(spec["lo"]), float(spec["hi"]), bool(spec.get("log", False))))
+        return cls(tuple(axes))
