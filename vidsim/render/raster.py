@@ -106,12 +106,14 @@ def _tri(
     if abs(area) < 1e-14 or not np.isfinite(area):
         return
     inv_area = 1.0 / area
-    xmin = max(0, int(np.ceil(min(u0, min(u1, u2)))))
-    xmax = min(W - 1, int(np.floor(max(u0, max(u1, u2)))))
-    ymin = max(0, int(np.ceil(min(v0, min(v1, v2)))))
-    ymax = min(H - 1, int(np.floor(max(v0, max(v1, v2)))))
-    if xmin > xmax or ymin > ymax:
+    # clamp in floating point first: far-off vertices must not overflow the int conversion
+    fxmin = max(0.0, np.ceil(min(u0, min(u1, u2))))
+    fxmax = min(W - 1.0, np.floor(max(u0, max(u1, u2))))
+    fymin = max(0.0, np.ceil(min(v0, min(v1, v2))))
+    fymax = min(H - 1.0, np.floor(max(v0, max(v1, v2))))
+    if not (fxmin <= fxmax and fymin <= fymax):
         return
+    xmin, xmax, ymin, ymax = int(fxmin), int(fxmax), int(fymin), int(fymax)
     # normalised edge functions l_k(x, y) = a_k x + b_k y + c_k (barycentric of vertex k)
     a0 = (v1 - v2) * inv_area
     b0 = (u2 - u1) * inv_area

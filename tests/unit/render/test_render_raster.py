@@ -150,3 +150,13 @@ def test_bad_near_and_camera_are_rejected():
         silhouette(V, F, _cam(), near=0.0)
     with pytest.raises(ValueError, match="cam"):
         silhouette(V, F, "camera")
+
+
+def test_far_off_and_degenerate_triangles_are_harmless():
+    cam = _cam()
+    V = np.array([[0.0, 0.0, 0.0], [1e200, 0.0, 1.0], [0.0, 1e200, 1.0],   # overflowing projection
+                  [0.1, 0.1, 0.0], [0.1, 0.1, 0.0], [0.2, 0.3, 0.0]])     # zero-area triangle
+    F = np.array([[0, 1, 2], [3, 4, 5]])
+    r = rasterize(V, F, cam, bary=True)
+    assert np.all(np.isfinite(r.depth[r.mask])) and np.all(r.depth[r.mask] > 0)
+    assert not np.any(r.face == 1)  # the degenerate face never wins a pixel
