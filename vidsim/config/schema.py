@@ -13,6 +13,12 @@ from typing import Any, Optional
 
 from omegaconf import MISSING
 
+from vidsim.config.cloth import ClothConfig
+from vidsim.config.fluid import FluidConfig
+from vidsim.config.gap import GapConfig
+from vidsim.config.posterior import PosteriorConfig
+from vidsim.config.rigid import RigidConfig
+
 
 def _v3(*x: float):
     return field(default_factory=lambda: list(x))
@@ -144,9 +150,13 @@ class VidsimConfig:
     render: RenderConfig = field(default_factory=RenderConfig)
     log: LogConfig = field(default_factory=LogConfig)
     calibrate: CalibrateConfig = field(default_factory=CalibrateConfig)
+    rigid: RigidConfig = field(default_factory=RigidConfig)
+    cloth: ClothConfig = field(default_factory=ClothConfig)
+    fluid: FluidConfig = field(default_factory=FluidConfig)
+    posterior: PosteriorConfig = field(default_factory=PosteriorConfig)
+    gap: GapConfig = field(default_factory=GapConfig)
     paths: PathsConfig = field(default_factory=PathsConfig)
     seed: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 GROUPS = {
@@ -157,4 +167,9 @@ GROUPS = {
     "render": RenderConfig,
     "log": LogConfig,
     "calibrate": CalibrateConfig,
+    "rigid": RigidConfig,
+    "cloth": ClothConfig,
+    "fluid": FluidConfig,
+    "posterior": PosteriorConfig,
+    "gap": GapConfig,
 }

@@ -1,5 +1,8 @@
 # Camera (and projector) calibration: the real chessboard set and synthetic scene targets.
 
+if stage_enabled("calibration_chessboard"):
+    TARGETS["calibration_chessboard"] = [f"{RESULTS}/calibration/chessboard/calibration.yaml"]
+
 
 rule calibrate_chessboard:
     """Calibrate the left camera of OpenCV's real chessboard set; compare with OpenCV's reference."""

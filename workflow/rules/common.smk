@@ -20,16 +20,14 @@ def stage_enabled(name):
     return bool(config.get("stages", {}).get(name, False))
 
 
+# Each workflow/rules/<family>.smk registers its final outputs here at parse time, under the
+# switch of `stages:` in the Snakemake config: TARGETS[<family>] = [paths...].
+TARGETS = {}
+
+
 def get_final_outputs(wildcards):
-    """Everything `rule all` asks for, by the stages switched on in the config."""
-    out = []
-    if stage_enabled("calibration_chessboard"):
-        out += [f"{RESULTS}/calibration/chessboard/calibration.yaml"]
-    if stage_enabled("demo"):
-        for s in config["demo"]["scenes"]:
-            out += [f"{RESULTS}/calibration/{s}/calibration.yaml", f"{RESULTS}/footage/{s}/meta.yaml",
-                    f"{RESULTS}/footage/{s}/contact_sheet.png"]
-    return out
+    """The final targets: what the stage families switched on have registered."""
+    return [p for paths in TARGETS.values() for p in paths]
 
 
 def get_out_dir(wildcards, output):

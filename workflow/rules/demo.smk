@@ -1,5 +1,10 @@
 # The foundation's demo: reality renders a short clip into a footage folder (truth kept beside it).
 
+if stage_enabled("demo"):
+    TARGETS["demo"] = [
+        f"{RESULTS}/footage/{s}/{f}" for s in config["demo"]["scenes"] for f in ("meta.yaml", "contact_sheet.png")
+    ]
+
 
 rule reality_demo:
     """Render a tumbling box over a textured wall; write the footage folder and its truth beside it."""
