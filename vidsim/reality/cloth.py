@@ -196,7 +196,7 @@ DEFAULT_EFFECTS: dict[str, dict[str, Any]] = {
     "anisotropy": {"on": False, "warp": 0.0, "weft": 0.0},
     "strain_stiffening": {"on": False, "c3": 0.0, "stiffness": 0.0},
     "grip_slip": {"on": False, "drop": 0.01, "lag": 0.03, "jitter": 0.0},
-    "gravity_tilt": {"on": False, "degrees": 3.0, "azimuth_deg": 0.0},
+    "gravity_tilt": {"on": False, "degrees": 3.0, "azimuth_deg": 90.0},
 }
 
 
@@ -497,11 +497,13 @@ def simulate_swatch(
         raise ClothRealityError("anisotropy warp/weft and strain_stiffening c3/stiffness must be >= 0")
     mass_v = f["areal_density"] * size * size / resolution**2
     h = size / (resolution - 1)
-    # tangent stiffness of an extra edge spring, the cubic part bounded for strains <= 0.2
-    k_eff = max(k_warp, k_weft) + 3 * 0.04 * k_cub
+    # Tangent stiffness of an extra edge spring (N/m of displacement ~ membrane N/m on a square
+    # grid), the cubic part evaluated at 10 % strain. An explicit spring on a vertex of mass m is
+    # stable for dt < 2 / omega = sqrt(m / k) (two-sided neighbours); use 0.7 of that.
+    k_eff = max(k_warp, k_weft) + 3 * 0.01 * k_cub
     dt_used = float(dt)
     if k_eff > 0:
-        dt_used = min(dt_used, 0.5 * np.sqrt(mass_v / (4 * k_eff)))
+        dt_used = min(dt_used, 0.7 * np.sqrt(mass_v / k_eff))
     substeps = max(1, int(np.ceil((1.0 / fps) / dt_used - 1e-9)))
     dt_used = (1.0 / fps) / substeps
     n_settle = int(round(settle / dt_used))
@@ -549,40 +551,11 @@ def simulate_swatch(
             force += _edge_forces(x, weft, rest_weft, k_weft * h, k_cub * h)
         d.xfrc_applied[fbody, :3] = force[free]
 
-    wall0 = time.perf_counter()
-    failure = None
-    out = np.empty((n_frames, len(x0), 3))
-    true_corners = np.empty((n_frames, 2, 3))
-    rest_p = true_path(np.array([0.0]))[0]
-    for _ in range(n_settle):  # settle at rest (t < 0: corners held still)
-        kin.set(d, rest_p, np.zeros((2, 3)))
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_flex(m, d)
-        apply_forces(0.0)
-        mujoco.mj_step(m, d)
-    frame = 0
-    for frame in range(n_frames):
-        if frame > 0:
-            for s in range(substeps):
-                t = (frame - 1) / fps + s * dt_used
-                kin.set(d, *corner_state(t))
-                mujoco.mj_kinematics(m, d)
-                mujoco.mj_flex(m, d)
-                apply_forces(t)
-                mujoco.mj_step(m, d)
-        t = frame / fps
-        pc, vc = corner_state(t)
-        kin.set(d, pc, vc)
-        mujoco.mj_kinematics(m, d)
-        mujoco.mj_flex(m, d)
-        out[frame] = d.flexvert_xpos
-        true_corners[frame] = pc
-        reason = _diverged(out[frame], pc.mean(axis=0), size)
-        if reason:
-            failure = f"{reason} at t = {t:.3f} s (frame {frame})"
-            break
-    n_done = frame + 1 if failure is None else frame
-    wall = time.perf_counter() - wall0
+    out, true_corners, failure, wall = _drive(
+        m, d, kin, corner_state, apply_forces if (air_on or k_eff > 0) else None,
+        n_settle, n_frames, fps, substeps, dt_used, size,
+    )
+    n_done = len(out)
     young, thick = _shell_parameters(f)
     truth = {
         "engine": f"mujoco {mujoco.__version__} flexcomp dim=2, integrator=discrete",
@@ -590,7 +563,7 @@ def simulate_swatch(
         "shell": {"young_pa": young, "thickness_m": thick, "mass_kg": f["areal_density"] * size * size},
         "motion": {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in mot.items()},
         "effects": eff,
-        "corner_paths_true": true_corners[:n_done],
+        "corner_paths_true": true_corners,
         "corner_vertex_ids": ic,
         "rest_vertices": x0,
         "resolution": int(resolution),
@@ -602,9 +575,66 @@ def simulate_swatch(
         "gravity": gravity.tolist(),
     }
     return ClothRealityRun(
-        vertices=out[:n_done].copy(), faces=faces, times=times[:n_done], corner_paths_measured=measured[:n_done],
+        vertices=out, faces=faces, times=times[:n_done], corner_paths_measured=measured[:n_done],
         truth=truth, ok=failure is None, failure=failure,
     )
+
+
+def _drive(
+    m: mujoco.MjModel,
+    d: mujoco.MjData,
+    kin: "_Kinematic",
+    grip_state,
+    apply_forces,
+    n_settle: int,
+    n_frames: int,
+    fps: float,
+    substeps: int,
+    dt: float,
+    scale: float,
+) -> tuple[np.ndarray, np.ndarray, str | None, float]:
+    """Settle at rest, then step with prescribed grips and record ``flexvert_xpos`` per frame.
+
+    Returns:
+        ``(vertices (T', N, 3), grips (T', G, 3), failure or None, wall seconds)`` with ``T'``
+        the frames completed before a divergence (all ``n_frames`` when it did not diverge).
+    """
+    wall0 = time.perf_counter()
+    failure = None
+    out = np.empty((n_frames, m.nflexvert, 3))
+    p_rest, _ = grip_state(0.0)
+    grips = np.empty((n_frames,) + p_rest.shape)
+
+    def step(p: np.ndarray, v: np.ndarray, t: float) -> None:
+        kin.set(d, p, v)
+        if apply_forces is not None:
+            mujoco.mj_kinematics(m, d)
+            mujoco.mj_flex(m, d)
+            apply_forces(t)
+        mujoco.mj_step(m, d)
+
+    zero = np.zeros_like(p_rest)
+    for _ in range(n_settle):  # settle at rest (t < 0: grips held still)
+        step(p_rest, zero, 0.0)
+    n_done = 0
+    for frame in range(n_frames):
+        if frame > 0:
+            for k in range(substeps):
+                t = (frame - 1) / fps + k * dt
+                step(*grip_state(t), t)
+        t = frame / fps
+        pc, vc = grip_state(t)
+        kin.set(d, pc, vc)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_flex(m, d)
+        out[frame] = d.flexvert_xpos
+        grips[frame] = pc
+        reason = _diverged(out[frame], pc.mean(axis=0), scale)
+        if reason:
+            failure = f"{reason} at t = {t:.3f} s (frame {frame})"
+            break
+        n_done = frame + 1
+    return out[:n_done].copy(), grips[:n_done].copy(), failure, time.perf_counter() - wall0
 
 
 class _VertexVelocity:
