@@ -67,7 +67,7 @@ def main() -> None:
     cam = PinholeCamera(intrinsics(820, 820, 322.5, 236.0), R, t, 640, 480, [-0.12, 0.05, 0.0005, -0.0004, 0.0])
     Rp, tp = look_at(np.array([0.45, -1.45, 0.65]), np.array([0.25, 0.0, 0.4]), up=np.array([0.0, 0.0, 1.0]))
     proj = PinholeCamera(intrinsics(1100, 1100, 400, 330), Rp, tp, 800, 600)
-    pattern = ProjectorPattern(800, 600, (6, 4), 28)
+    pattern = ProjectorPattern(800, 600, (7, 4), 28)
     target = ChessboardTarget()
     T = np.eye(4)
     T[:3, :3] = [[1, 0, 0], [0, 0, 1], [0, -1, 0]]

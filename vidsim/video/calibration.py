@@ -22,9 +22,15 @@ corners of a row, y along the rows, z into the board (away from a camera that se
 face); units are metres. The square diagonally before corner 0 (centred at ``(-s/2, -s/2)``) is
 black; detections are put in this canonical order so that the frame is unambiguous.
 
-Synthetic footage of the target (:func:`render_target_views`) is made by ray-plane intersection
-for each supersampled camera pixel through the distorted lens, with projector light, blur and
-sensor noise, so the project can film a calibration target in its synthetic realities.
+Capture protocol (real or synthetic): ``target_images[i]`` shows the target with the projector
+dark; ``projector_images[i]`` (optional, per view) shows the same pose with the same exposure
+and the projector casting :class:`ProjectorPattern` onto the blank part of the board.
+
+Synthetic footage of the target (:func:`render_target_views`, :func:`film_calibration_target`)
+is made by ray-plane intersection for each camera pixel through the distorted lens; the board
+texture and the projected pattern are box-filtered analytically over each sample's footprint
+(no aliasing), then blur and sensor noise are added, so the project can film a calibration
+target in its synthetic realities.
 
 Pixel convention everywhere: (0, 0) is the centre of the top-left pixel.
 """
@@ -96,6 +102,11 @@ class ChessboardTarget:
         nx, ny = self.pattern_size
         if nx < 2 or ny < 2:
             raise CalibrationError(f"target: pattern_size must be at least (2, 2) inner corners, got {self.pattern_size}")
+        if (nx + ny) % 2 == 0:
+            raise CalibrationError(
+                f"target: pattern_size {self.pattern_size} gives a board that looks the same turned by 180 degrees; "
+                "use one even and one odd number of inner corners (e.g. (9, 6)) so the board frame is unambiguous"
+            )
         if not self.square_size > 0:
             raise CalibrationError(f"target: square_size must be > 0 metres, got {self.square_size}")
         x0, x1, y0, y1 = self.board_extent
@@ -172,8 +183,8 @@ class ProjectorPattern:
 
     width: int = 800
     height: int = 600
-    pattern_size: tuple[int, int] = (6, 4)
-    square_px: int = 36
+    pattern_size: tuple[int, int] = (7, 4)
+    square_px: int = 28
     origin: tuple[int, int] | None = None
 
     def _origin(self) -> tuple[int, int]:
@@ -186,6 +197,11 @@ class ProjectorPattern:
         nx, ny = self.pattern_size
         if nx < 2 or ny < 2:
             raise CalibrationError(f"projector pattern: pattern_size must be >= (2, 2), got {self.pattern_size}")
+        if (nx + ny) % 2 == 0:
+            raise CalibrationError(
+                f"projector pattern: pattern_size {self.pattern_size} looks the same turned by 180 degrees; "
+                "use one even and one odd number of inner corners (e.g. (7, 4))"
+            )
         if self.square_px < 4:
             raise CalibrationError(f"projector pattern: square_px must be >= 4 pixels, got {self.square_px}")
         u0, v0 = self._origin()
@@ -355,7 +371,8 @@ class ProjectorCalibration:
 def _as_gray_u8(img: np.ndarray, name: str) -> np.ndarray:
     a = np.asarray(img)
     if a.ndim == 3 and a.shape[2] in (3, 4):
-        a = cv2.cvtColor(a[..., :3].astype(a.dtype), cv2.COLOR_BGR2GRAY) if a.dtype == np.uint8 else a[..., :3].mean(axis=2)
+        bgr = np.ascontiguousarray(a[..., :3])
+        a = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if a.dtype == np.uint8 else bgr.mean(axis=2)
     if a.ndim != 2:
         raise CalibrationError(f"image '{name}': expected a (H, W) grayscale or (H, W, 3) colour image, got shape {a.shape}")
     if a.dtype == np.uint8:
@@ -434,7 +451,9 @@ def detect_chessboard(
 
     Returns:
         (N, 2) corners in pixels in canonical order (see module docstring), or ``None`` when
-        the board is not found.
+        the board is not found. The order is unambiguous only for boards with one even and one
+        odd number of inner corners (a board with both even or both odd looks the same turned
+        by 180 degrees), and when the squares next to corner 0 are inside the image.
     """
     gray = _as_gray_u8(image, "image")
     ok, corners = cv2.findChessboardCorners(gray, tuple(int(p) for p in pattern_size), flags=_FIND_FLAGS)

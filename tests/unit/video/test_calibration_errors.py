@@ -64,7 +64,7 @@ def test_bad_arrays_and_fields_are_named():
     with pytest.raises(CalibrationError, match="board_extent"):
         ChessboardTarget(board_extent=(0.0, 0.1, 0.0, 0.1))
     with pytest.raises(CalibrationError, match="does not fit"):
-        ProjectorPattern(200, 150, (6, 4), 40)
+        ProjectorPattern(200, 150, (7, 4), 40)
 
 
 def test_projector_without_pattern_and_mismatched_lists(views):
@@ -74,7 +74,7 @@ def test_projector_without_pattern_and_mismatched_lists(views):
     with pytest.raises(CalibrationError, match="4 target images but 2 pattern images"):
         calibrate_projector(res, views, views[:2], ProjectorPattern())
     # the pattern images show no projected light: every view is rejected with its reason
-    with pytest.raises(CalibrationError, match=r"only 0 view\(s\).*projected 6x4 pattern not found"):
+    with pytest.raises(CalibrationError, match=r"only 0 view\(s\).*projected 7x4 pattern not found"):
         calibrate_projector(res, views, views, ProjectorPattern())
 
 
@@ -84,3 +84,10 @@ def test_view_lookup_errors(views):
         res.pose("zz")
     with pytest.raises(CalibrationError, match="view index 9 out of range"):
         res.pose(9)
+
+
+def test_symmetric_boards_are_refused_for_a_world_frame():
+    with pytest.raises(CalibrationError, match=r"\(8, 6\).*180 degrees"):
+        ChessboardTarget(pattern_size=(8, 6))
+    with pytest.raises(CalibrationError, match=r"\(6, 4\).*180 degrees"):
+        ProjectorPattern(pattern_size=(6, 4))

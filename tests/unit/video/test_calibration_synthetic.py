@@ -27,7 +27,7 @@ from vidsim.video.calibration import (
 from vidsim.video.camera import PinholeCamera, distort_normalized, intrinsics, look_at
 
 TARGET = ChessboardTarget()
-PATTERN = ProjectorPattern(800, 600, (6, 4), 28)
+PATTERN = ProjectorPattern(800, 600, (7, 4), 28)
 
 
 def _board_to_world() -> np.ndarray:
@@ -152,3 +152,34 @@ def test_projector_pattern_radiance_is_its_raster():
     # corners sit where four squares meet: box average over a 2-px footprint is 1/2 there
     q = PATTERN.corners()
     np.testing.assert_allclose(PATTERN.radiance(q[:, 0], q[:, 1], 2.0), 0.5, atol=1e-12)
+
+
+def test_upside_down_projector_is_recovered():
+    """A ceiling-mounted (image upside down) projector: the pattern's corner order stays right."""
+    rng = np.random.default_rng(11)
+    R, t = look_at(np.array([0.0, -1.5, 0.5]), np.array([0.0, 0.0, 0.4]), up=np.array([0.0, 0.0, 1.0]))
+    cam = PinholeCamera(intrinsics(820, 820, 322.5, 236.0), R, t, 640, 480)
+    Rp, tp = look_at(np.array([0.45, -1.45, 0.65]), np.array([0.25, 0.0, 0.4]), up=np.array([0.0, 0.0, -1.0]))
+    proj = PinholeCamera(intrinsics(1100, 1100, 400, 330), Rp, tp, 800, 600)
+    ti, pi, names = film_calibration_target(
+        cam, rng, target=TARGET, projector=proj, pattern=PATTERN, n_views=5, n_projector_views=6
+    )
+    out = calibrate_scene(ti, pi, target=TARGET, pattern=PATTERN, image_names=names)
+    assert out["projector_n_views"] == 6 and out["projector_rms_px"] < 0.3
+    c = PinholeCamera.from_dict(out["camera"])
+    p = PinholeCamera.from_dict(out["projector"])
+    R_rel, R_rel_true = p.R @ c.R.T, proj.R @ cam.R.T  # camera -> projector, frame independent
+    angle = np.degrees(np.arccos(np.clip((np.trace(R_rel @ R_rel_true.T) - 1) / 2, -1, 1)))
+    assert angle < 0.5
+
+
+def test_canonical_order_undoes_reversed_and_mirrored_corner_lists(scene):
+    """Whatever order a detector returns (reversed, rows mirrored), the canonical one comes back."""
+    from vidsim.video.calibration import _canonical_order
+
+    img = scene[3][2]
+    nx, ny = TARGET.pattern_size
+    c = detect_chessboard(img, TARGET.pattern_size)
+    grid = c.reshape(ny, nx, 2)
+    for variant in (grid[::-1, ::-1], grid[:, ::-1], grid[::-1, :]):
+        np.testing.assert_array_equal(_canonical_order(img, variant.reshape(-1, 2), (nx, ny)), c)
