@@ -15,8 +15,9 @@ The field ``v`` is ``(H, W, 2)`` in grid nodes per frame on the edit grid. The o
   matches fixed (exact almost everywhere).
 
 The local minimum of the continuous formulation (seed Figure 15) is avoided by a harmonic
-initialisation: per sink, a harmonic potential (Dirichlet 0 on the sink, 1 on the other sinks,
-the frame edge and the channels claimed by other sinks' particles; Neumann at obstacles) whose
+initialisation: per sink, a harmonic potential (Dirichlet 0 on the sink, 1 on the sources, the
+other sinks and the channels claimed by other sinks' particles; Neumann at obstacles and at the
+frame edge) whose
 discrete steepest-descent paths from every source node reach the desired sink (a harmonic
 function has no interior minimum), and a velocity field that follows the potential of the
 sink whose channel is nearest.
@@ -31,6 +32,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse import csgraph
 from numba import njit
 from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
@@ -125,6 +127,7 @@ def trace_particles(v, particles, desired, sink_boxes, sink_id, solid, step, max
             continue
         lx = 2.0 * (x - cx)
         ly = 2.0 * (y - cy)
+        lam_max = 1e3 * (np.sqrt(lx * lx + ly * ly) + 1.0)
         for t in range(n - 1, -1, -1):
             val, dvdx, dvdy, i, j, fx, fy = _bilinear(v, xs[t, 0], xs[t, 1])
             s2 = val[0] ** 2 + val[1] ** 2 + _EPS**2
@@ -150,6 +153,10 @@ def trace_particles(v, particles, desired, sink_boxes, sink_id, solid, step, max
             # lambda_t = lambda_{t+1} + Dv^T mu
             nlx = lx + dvdx[0] * mx + dvdx[1] * my
             nly = ly + dvdy[0] * mx + dvdy[1] * my
+            nrm = np.sqrt(nlx * nlx + nly * nly)
+            if nrm > lam_max:  # long stagnating traces: keep the adjoint bounded
+                nlx *= lam_max / nrm
+                nly *= lam_max / nrm
             lx = nlx
             ly = nly
     return exits, codes, errs, grad
@@ -228,9 +235,10 @@ def neighborhood(v: np.ndarray, index: PatchIndex, offset: np.ndarray | None = N
     return e, g[1:-1, 1:-1] / n
 
 
-def _harmonic(free: np.ndarray, dirichlet_value: np.ndarray) -> np.ndarray:
-    """Solve the graph Laplace equation on ``free`` nodes (4-connected, Neumann at non-free,
-    non-Dirichlet nodes); ``dirichlet_value`` is NaN where unknown."""
+def _harmonic(free: np.ndarray, dirichlet_value: np.ndarray, injection: np.ndarray | None = None) -> np.ndarray:
+    """Solve the graph Poisson equation ``-L phi = injection`` on ``free`` nodes (4-connected,
+    Neumann at non-free nodes); ``dirichlet_value`` is NaN where unknown. Where
+    ``injection`` is zero the solution is harmonic (no interior extremum)."""
     h, w = free.shape
     known = ~np.isnan(dirichlet_value)
     unk = free & ~known
@@ -258,18 +266,57 @@ def _harmonic(free: np.ndarray, dirichlet_value: np.ndarray) -> np.ndarray:
         np.add.at(rhs, r[~nu], dirichlet_value[ny[~nu], nx[~nu]])
         del a
     n = unk.sum()
-    kappa = 1e-7  # a tiny leak to 1 keeps regions cut off from every Dirichlet node solvable
+    kappa = 1e-9  # a tiny leak keeps regions cut off from every Dirichlet node solvable
     A = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n))
     A = A + kappa * sp.identity(n, format="csr")
     phi = np.full((h, w), 1.0)
     phi[known] = dirichlet_value[known]
+    if injection is not None:
+        rhs = rhs + injection[unk]
     phi[unk] = spla.spsolve(A.tocsc(), rhs + kappa)
     return phi
 
 
+def _geodesic(ok: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shortest 8-connected path cost from every ``ok`` node to ``target`` nodes (Dijkstra;
+    node cost ``1 + 3 / clearance`` keeps paths away from walls) and each node's next node
+    toward the target (-1 none): ``(H, W)``, ``(H*W,)``."""
+    h, w = ok.shape
+    idx = np.arange(h * w).reshape(h, w)
+    # keep clear of walls: a node next to an obstacle costs more to cross (1 + 3 / clearance)
+    clear = distance_transform_edt(ok) if (~ok).any() else np.full((h, w), np.inf)
+    cost = 1.0 + 3.0 / np.maximum(clear, 0.5)
+    rows, cols, vals = [], [], []
+    for di, dj in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        a = ok[max(0, -di):h - max(0, di), max(0, -dj):w - max(0, dj)]
+        b = ok[max(0, di):h + min(0, di) if di else h, max(0, dj):w + min(0, dj) if dj else w]
+        ia = idx[max(0, -di):h - max(0, di), max(0, -dj):w - max(0, dj)]
+        ib = idx[max(0, di):h + min(0, di) if di else h, max(0, dj):w + min(0, dj) if dj else w]
+        m = a & b
+        if di and dj:  # no corner cutting between two diagonal wall nodes
+            c1 = ok[max(0, -di):h - max(0, di), max(0, dj):w + min(0, dj) if dj else w]
+            c2 = ok[max(0, di):h + min(0, di) if di else h, max(0, -dj):w - max(0, dj)]
+            m &= c1 & c2
+        rows.append(ia[m])
+        cols.append(ib[m])
+        vals.append(np.hypot(di, dj) * 0.5 * (cost[max(0, -di):h - max(0, di), max(0, -dj):w - max(0, dj)][m]
+                                               + cost[max(0, di):h + min(0, di) if di else h,
+                                                      max(0, dj):w + min(0, dj) if dj else w][m]))
+    r = np.concatenate(rows)
+    c = np.concatenate(cols)
+    g = sp.csr_matrix((np.concatenate(vals), (r, c)), shape=(h * w, h * w))
+    tg = np.flatnonzero((target & ok).ravel())
+    if len(tg) == 0:
+        return np.full((h, w), np.inf), -np.ones(h * w, np.int64)
+    dist, pred, _ = csgraph.dijkstra(g, directed=False, indices=tg, min_only=True, return_predecessors=True)
+    pred = np.where(pred < 0, -1, pred).astype(np.int64)
+    return dist.reshape(h, w), pred
+
+
 def harmonic_init(prob: EditProblem, speed: float = 1.0) -> tuple[np.ndarray, dict[str, Any]]:
     """Harmonic-potential initial field: every source node's steepest-descent path reaches
-    its desired sink by construction.
+    its desired sink by construction (when the sink is reachable around the channels claimed
+    before it; ``paths_ok`` reports the share that did).
 
     Returns:
         ``(H, W, 2)`` initial velocities of magnitude ``speed`` and a dict with ``channels``
@@ -279,62 +326,78 @@ def harmonic_init(prob: EditProblem, speed: float = 1.0) -> tuple[np.ndarray, di
     h, w = prob.solid.shape
     n_sinks = len(prob.sink_boxes)
     free = ~prob.solid
-    edge = np.zeros((h, w), bool)
-    edge[0, :] = edge[-1, :] = edge[:, 0] = edge[:, -1] = True
     src_lab = -np.ones((h, w), np.int64)
     pi = prob.particles.astype(int)
     src_lab[pi[:, 1], pi[:, 0]] = prob.desired
     channels = -np.ones((h, w), np.int64)
 
-    def potential(k: int) -> np.ndarray:
+    def potential(k: int, solve: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+        # flux-driven potential flow from the sources of sink k into sink k: unit injection at
+        # those sources, phi = 0 on sink k, walls (Neumann) at obstacles, the frame edge, the
+        # other sinks, other sources and channels claimed by other sinks. Superharmonic, so
+        # its only minimum is sink k: steepest descent from any connected node ends there.
+        walls = prob.solid | ((prob.sink_id >= 0) & (prob.sink_id != k)) | ((src_lab >= 0) & (src_lab != k)) \
+            | ((channels >= 0) & (channels != k) & (prob.sink_id != k))
+        ok = ~walls
         dv = np.full((h, w), np.nan)
-        blocked = edge | ((prob.sink_id >= 0) & (prob.sink_id != k)) | ((src_lab >= 0) & (src_lab != k)) \
-            | ((channels >= 0) & (channels != k))
-        blocked &= src_lab != k
-        dv[blocked & free] = 1.0
-        dv[prob.sink_id == k] = 0.0
-        return _harmonic(free, dv)
+        dv[(prob.sink_id == k) & ok] = 0.0
+        inj = ((src_lab == k) & ok).astype(float)
+        return (_harmonic(ok, dv, inj) if solve else None), ok
 
-    nbrs = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
     reached = 0
+    tangent = np.zeros((h, w, 2))
     for k in range(n_sinks):
         mine = prob.desired == k
         if not mine.any():
             continue
-        phi = potential(k)
+        _, okk = potential(k, solve=False)
+        dist, pred = _geodesic(okk, prob.sink_id == k)
         for x0, y0 in pi[mine]:
-            i, j = y0, x0
+            node = y0 * w + x0
+            if not np.isfinite(dist.ravel()[node]):
+                continue
             for _ in range(h * w):
-                channels[i, j] = k
+                i, j = divmod(node, w)
+                nxt = pred[node]
+                if channels[i, j] < 0 or src_lab[i, j] == k:
+                    channels[i, j] = k
+                    if nxt >= 0:
+                        ni, nj = divmod(nxt, w)
+                        tangent[i, j] = (nj - j, ni - i)
                 if prob.sink_id[i, j] == k:
                     reached += 1
                     break
-                best, bi, bj = phi[i, j], -1, -1
-                for di, dj in nbrs:
-                    a, b = i + di, j + dj
-                    if 0 <= a < h and 0 <= b < w and free[a, b] and phi[a, b] < best:
-                        best, bi, bj = phi[a, b], a, b
-                if bi < 0:
+                node = nxt
+                if node < 0:
                     break
-                i, j = bi, bj
-    # final potentials see every other sink's channels; regions = nearest channel
-    phis = np.stack([potential(k) for k in range(n_sinks)])
+    pots = [potential(k) for k in range(n_sinks)]
     has = channels >= 0
     if has.any():
-        _, (iy, ix) = distance_transform_edt(~has, return_indices=True)
+        dch, (iy, ix) = distance_transform_edt(~has, return_indices=True)
         labels = channels[iy, ix]
     else:
+        dch, iy, ix = np.full((h, w), np.inf), None, None
         labels = np.zeros((h, w), np.int64)
     labels = np.where(labels < 0, 0, labels)
-    # fill obstacle nodes with a nearby free value so gradients are one-sided there
-    _, (fy, fx) = distance_transform_edt(prob.solid, return_indices=True)
     v = np.zeros((h, w, 2))
-    for k in range(n_sinks):
-        phi = phis[k][fy, fx]
-        gy, gx = np.gradient(phi)
+    for k, (phi, okk) in enumerate(pots):
+        # fill wall nodes with a nearby valid value so gradients are one-sided there
+        _, (fy, fx) = distance_transform_edt(~okk, return_indices=True)
+        gy, gx = np.gradient(phi[fy, fx])
+        dist, _ = _geodesic(okk, prob.sink_id == k)
+        dist = np.where(np.isfinite(dist), dist, h + w)
+        dy, dx = np.gradient(dist[fy, fx])
+        # potential-flow direction blended with the geodesic (shortest path) direction
+        a = np.stack([-gx, -gy], -1)
+        a /= np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
+        g = np.stack([-dx, -dy], -1)
+        g /= np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
         sel = labels == k
-        v[sel, 0] = -gx[sel]
-        v[sel, 1] = -gy[sel]
+        v[sel] = (a + g)[sel]
+    # on and beside the channels: the channel's own direction (its path to the sink)
+    if iy is not None:
+        band = (dch <= 1.5) & (np.linalg.norm(tangent[iy, ix], axis=-1) > 0)
+        v[band] = tangent[iy, ix][band]
     mag = np.linalg.norm(v, axis=-1, keepdims=True)
     v = speed * v / np.maximum(mag, 1e-12)
     v[prob.solid] = 0.0

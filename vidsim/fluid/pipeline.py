@@ -1,0 +1,90 @@
+"""Stage-level drivers of the fluid pipeline, for the lead's CLI and Snakemake rules.
+
+Each takes plain arrays and dicts and returns arrays plus a dict of measured figures:
+
+``footage frames -> estimate_flow -> video_fields -> edit_field -> render_sequence -> figures``.
+No file I/O here; reading footage and writing results belong to ``vidsim.io`` / the CLI.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+
+from vidsim.fluid.edit import EditSpec
+from vidsim.fluid.flow import FlowMethod, estimate_flow
+from vidsim.fluid.metrics import flicker, patch_distance_ratio, rendered_flow_epe, static_mask
+from vidsim.fluid.optimize import EditResult, edit_field
+from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
+
+
+def prepare_gray_frames(frames: list[np.ndarray] | np.ndarray, downsample: int = 1) -> np.ndarray:
+    """Grey (or colour) recordings such as PIV images to ``(T, H, W, 3)`` uint8 RGB, area-
+    downsampled by an integer factor (the PIVlab frames are 1024x765: ``downsample=4`` gives
+    256x191)."""
+    out = []
+    for i, f in enumerate(frames):
+        f = np.asarray(f)
+        if f.dtype != np.uint8:
+            raise ValueError(f"frames[{i}] dtype {f.dtype}, expected uint8")
+        if downsample > 1:
+            f = cv2.resize(f, (f.shape[1] // downsample, f.shape[0] // downsample), interpolation=cv2.INTER_AREA)
+        if f.ndim == 2:
+            f = np.repeat(f[..., None], 3, axis=-1)
+        out.append(f)
+    return np.stack(out)
+
+
+def video_fields(flow: np.ndarray, spec: EditSpec) -> np.ndarray:
+    """Optical flow ``(T-1, H, W, 2)`` px/frame to the edit grid ``(T-1, h, w, 2)`` nodes/frame."""
+    g = downsample_flow(flow, spec.downsample)
+    if g.shape[1] < spec.height or g.shape[2] < spec.width:
+        raise ValueError(f"footage gives a {g.shape[2]}x{g.shape[1]} grid at downsample={spec.downsample}, "
+                         f"smaller than the edit grid {spec.width}x{spec.height}")
+    return g[:, :spec.height, :spec.width]
+
+
+def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n_frames: int | None = None,
+             method: FlowMethod = "dis_fine", temporal_sigma: float = 1.0,
+             flow: np.ndarray | None = None) -> dict[str, Any]:
+    """Flow -> edit -> render -> measure, for one edit.
+
+    Args:
+        src_frames: ``(T, H, W, 3)`` uint8 footage.
+        spec: the edit (grid coordinates in nodes of ``spec.downsample`` pixels).
+        rng: random generator for the renderer.
+        n_frames: output frames (default ``spec.render.frames``).
+        method, temporal_sigma: optical-flow settings (see :func:`estimate_flow`).
+        flow: precomputed flow of ``src_frames`` (skips the estimate).
+
+    Returns:
+        dict with ``frames`` (n,H',W',3) uint8, ``edited_field_px`` (H',W',2), ``edit``
+        (:class:`EditResult`), ``source_flow`` and ``figures`` (flow-conservation fraction,
+        rendered-flow EPE in px/frame, patch-distance ratio, flicker of output and source in
+        grey levels, timings).
+    """
+    n = spec.render.frames if n_frames is None else n_frames
+    if flow is None:
+        flow = estimate_flow(src_frames, method=method, temporal_sigma=temporal_sigma)
+    g = video_fields(flow, spec)
+    step = max(1, g.shape[0] // 12)
+    res: EditResult = edit_field(g.mean(0), spec, g[::step])
+    ds = spec.downsample
+    H, W = spec.height * ds, spec.width * ds
+    field_px = upsample_field(res.field, ds, (H, W))
+    solid_px = cv2.resize(spec.solid_mask().astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+    field_px[solid_px] = 0.0
+    out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px)
+    figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig}
+    figs["rendered_flow_epe_px"] = rendered_flow_epe(out, field_px, border=spec.render.patch)
+    figs["edited_speed_mean_px"] = float(np.linalg.norm(field_px, axis=-1).mean())
+    figs["patch_distance"] = patch_distance_ratio(out, src_frames[:, :H, :W], rng=rng)
+    st_out = static_mask(field_px)
+    st_src = static_mask(flow[:, :H, :W])
+    figs["flicker_output"] = flicker(out, st_out) if st_out.any() else float("nan")
+    figs["flicker_source"] = flicker(src_frames[:, :H, :W], st_src) if st_src.any() else float("nan")
+    figs["static_fraction_output"] = float(st_out.mean())
+    figs["static_fraction_source"] = float(st_src.mean())
+    return {"frames": out, "edited_field_px": field_px, "edit": res, "source_flow": flow, "figures": figs}
