@@ -56,6 +56,10 @@ __all__ = [
     "corner_paths",
     "simulate_swatch",
     "air_forces",
+    "SKIRT_MOTIONS",
+    "skirt_motion",
+    "skirt_frames",
+    "simulate_skirt",
 ]
 
 
@@ -647,3 +651,291 @@ class _VertexVelocity:
 
     def __call__(self, d: mujoco.MjData) -> np.ndarray:
         return np.einsum("nk,nkc->nc", d.qvel[self.dof], self.axes)
+
+
+# --------------------------------------------------------------------------------------- skirt
+#: Skipping body (kinematic, known like motion capture). Units: m, Hz, rad. The waist bobs once
+#: per step (``bob * |sin(pi f t)|``), sways sideways (x), rolls (about y) and yaws (about z) once
+#: per stride (two steps), and the legs (capsules from the hips) swing forward/back (about x) in
+#: opposition.
+SKIRT_MOTIONS: dict[str, dict[str, Any]] = {
+    "skip": {"waist": [0.0, 0.0, 1.0], "step_frequency": 2.2, "bob": 0.05, "sway": 0.03,
+             "roll": 0.12, "yaw": 0.2, "leg_swing": 0.55, "hip_width": 0.18, "hip_drop": 0.08,
+             "leg_length": 0.85, "leg_radius": 0.065, "ramp": 0.25},
+}
+_SKIRT_MOTION_KEYS = set(SKIRT_MOTIONS["skip"])
+
+#: Skirt shape: a truncated cone hanging from the waist. Units: m.
+SKIRT_SHAPE: dict[str, float] = {"waist_radius": 0.15, "hem_radius": 0.30, "length": 0.45}
+
+
+def skirt_motion(name: str = "skip") -> dict[str, Any]:
+    """A copy of a named skipping-body motion (see :data:`SKIRT_MOTIONS`)."""
+    if name not in SKIRT_MOTIONS:
+        raise ClothRealityError(f"skirt motion must be one of {sorted(SKIRT_MOTIONS)}, got {name!r}")
+    return copy.deepcopy(SKIRT_MOTIONS[name])
+
+
+def _check_skirt_motion(motion: dict[str, Any]) -> dict[str, Any]:
+    if not isinstance(motion, dict):
+        raise ClothRealityError(f"skirt motion must be a dict, got {type(motion).__name__}")
+    unknown = set(motion) - _SKIRT_MOTION_KEYS - {"name"}
+    missing = _SKIRT_MOTION_KEYS - set(motion)
+    if unknown or missing:
+        raise ClothRealityError(f"skirt motion keys: unknown {sorted(unknown)}, missing {sorted(missing)}")
+    m = dict(motion)
+    w = np.asarray(m["waist"], dtype=float)
+    if w.shape != (3,) or not np.all(np.isfinite(w)):
+        raise ClothRealityError(f"skirt motion['waist'] must be 3 finite numbers (m), got {m['waist']!r}")
+    m["waist"] = w
+    for k in ("leg_length", "leg_radius", "hip_width"):
+        if not m[k] > 0:
+            raise ClothRealityError(f"skirt motion['{k}'] must be > 0 m, got {m[k]!r}")
+    return m
+
+
+def _rot(roll: float, yaw: float) -> np.ndarray:
+    cr, sr, cy, sy = np.cos(roll), np.sin(roll), np.cos(yaw), np.sin(yaw)
+    ry = np.array([[cr, 0, sr], [0, 1, 0], [-sr, 0, cr]])  # roll about y
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry
+
+
+def skirt_frames(motion: dict[str, Any], times: np.ndarray) -> dict[str, np.ndarray]:
+    """Poses of the skipping body at the given times.
+
+    Args:
+        motion: a skirt motion dict (see :data:`SKIRT_MOTIONS`).
+        times: ``(T,)`` seconds.
+
+    Returns:
+        ``{"waist_pos": (T, 3) m, "waist_rot": (T, 3, 3) world-from-waist rotation,
+        "legs": (T, 2, 2, 3) hip and ankle points of the left/right leg capsules, m}``.
+    """
+    m = _check_skirt_motion(motion)
+    t = np.asarray(times, dtype=float).reshape(-1)
+    if m["ramp"] > 0:
+        s = np.clip(t / m["ramp"], 0.0, 1.0)
+        env = s * s * s * (10 - 15 * s + 6 * s * s)
+    else:
+        env = (t >= 0).astype(float)
+    ph = np.pi * m["step_frequency"] * t
+    pos = np.repeat(m["waist"][None, :], len(t), axis=0)
+    pos[:, 0] += env * m["sway"] * np.sin(ph)
+    pos[:, 2] += env * m["bob"] * np.abs(np.sin(2 * ph)) * 0.5 * 2
+    rot = np.stack([_rot(e * m["roll"] * np.sin(p), e * m["yaw"] * np.sin(p + 0.5)) for e, p in zip(env, ph)])
+    swing = env * m["leg_swing"] * np.sin(ph)
+    legs = np.empty((len(t), 2, 2, 3))
+    for k, (side, sgn) in enumerate(((-1.0, 1.0), (1.0, -1.0))):
+        hip_local = np.array([side * 0.5 * m["hip_width"], 0.0, -m["hip_drop"]])
+        a = sgn * swing  # leg angle about the waist x axis, forward (+y) when positive
+        foot_local = hip_local[None, :] + m["leg_length"] * np.stack(
+            [np.zeros_like(a), np.sin(a), -np.cos(a)], axis=1)
+        legs[:, k, 0] = pos + np.einsum("tij,j->ti", rot, hip_local)
+        legs[:, k, 1] = pos + np.einsum("tij,tj->ti", rot, foot_local)
+    return {"waist_pos": pos, "waist_rot": rot, "legs": legs}
+
+
+def _skirt_mesh(shape: dict[str, float], rings: int, around: int) -> tuple[np.ndarray, np.ndarray]:
+    """Truncated-cone points in the waist frame (top ring at z = 0) and triangles."""
+    r0, r1, L = shape["waist_radius"], shape["hem_radius"], shape["length"]
+    drop = np.sqrt(max(L * L - (r1 - r0) ** 2, 1e-6))
+    pts = []
+    for i in range(rings):
+        f = i / (rings - 1)
+        r, z = r0 + (r1 - r0) * f, -drop * f
+        for j in range(around):
+            a = 2 * np.pi * j / around
+            pts.append([r * np.cos(a), r * np.sin(a), z])
+    tris = []
+    for i in range(rings - 1):
+        for j in range(around):
+            a, b = i * around + j, i * around + (j + 1) % around
+            c, e = a + around, b + around
+            tris += [[a, c, b], [b, c, e]] if (i + j) % 2 == 0 else [[a, c, e], [a, e, b]]
+    return np.asarray(pts, float), np.asarray(tris, np.int64)
+
+
+def _capsule_depth(x: np.ndarray, a: np.ndarray, b: np.ndarray, r: float) -> np.ndarray:
+    """Penetration depth (m, > 0 inside) of points ``x`` (N, 3) into capsule ``a``-``b``."""
+    ab = b - a
+    u = np.clip(((x - a) @ ab) / max(ab @ ab, 1e-12), 0.0, 1.0)
+    return r - np.linalg.norm(x - (a + u[:, None] * ab), axis=1)
+
+
+def simulate_skirt(
+    fabric: dict[str, Any],
+    motion: dict[str, Any],
+    effects: dict[str, Any] | None,
+    rng: np.random.Generator,
+    n_frames: int = 50,
+    fps: float = 30.0,
+    rings: int = 9,
+    around: int = 28,
+    shape: dict[str, float] | None = None,
+    dt: float = 0.002,
+    settle: float = 1.0,
+) -> ClothRealityRun:
+    """A truncated-cone skirt of the given fabric on a skipping kinematic body.
+
+    The skirt's top ring is held by the waist (heavy kinematic vertices following the waist's
+    pose); the legs are capsule colliders on mocap bodies. Effects as in :func:`simulate_swatch`
+    except ``grip_slip`` (the waistband does not slip) and the edge-spring effects (the skirt
+    mesh has no warp/weft grid): those raise an error when switched on.
+
+    Args:
+        fabric: fabric dict (see :data:`FABRICS`).
+        motion: skipping-body dict (see :data:`SKIRT_MOTIONS`).
+        effects: effects dict or None (all off).
+        rng: random generator (gust phases).
+        n_frames, fps: output frames and rate (Hz).
+        rings, around: mesh resolution (rings from waist to hem, vertices around).
+        shape: ``{"waist_radius", "hem_radius", "length"}`` in m; default :data:`SKIRT_SHAPE`.
+        dt: MuJoCo time step, s (rounded down to divide the frame interval).
+        settle: rest time before frame 0, s.
+
+    Returns:
+        :class:`ClothRealityRun`; ``corner_paths_measured`` is ``(T, 0, 3)`` and ``colliders``
+        holds the leg capsules per frame (the known body motion) and the waist pose.
+    """
+    f = _check_fabric(fabric)
+    mot = _check_skirt_motion(motion)
+    eff = resolve_effects(effects)
+    for name in ("grip_slip", "anisotropy", "strain_stiffening"):
+        if eff[name]["on"]:
+            raise ClothRealityError(f"effect {name!r} is not available for the skirt")
+    shp = dict(SKIRT_SHAPE if shape is None else shape)
+    if set(shp) != set(SKIRT_SHAPE) or not all(float(v) > 0 for v in shp.values()):
+        raise ClothRealityError(f"shape must give positive {sorted(SKIRT_SHAPE)}, got {shape!r}")
+    if not (isinstance(rings, (int, np.integer)) and rings >= 3 and isinstance(around, (int, np.integer)) and around >= 8):
+        raise ClothRealityError(f"rings must be >= 3 and around >= 8, got {rings}, {around}")
+    if not (isinstance(n_frames, (int, np.integer)) and n_frames >= 1 and fps > 0 and dt > 0 and settle >= 0):
+        raise ClothRealityError("n_frames >= 1, fps > 0, dt > 0 and settle >= 0 are required")
+    gust_phases = rng.uniform(0, 2 * np.pi, 3)
+    times = np.arange(n_frames) / fps
+    pts_local, tris = _skirt_mesh(shp, rings, around)
+    fr0 = skirt_frames(mot, np.array([0.0]))
+    pts0 = fr0["waist_pos"][0] + pts_local @ fr0["waist_rot"][0].T
+    r0, r1, L = shp["waist_radius"], shp["hem_radius"], shp["length"]
+    area = np.pi * (r0 + r1) * L
+    young, thick = _shell_parameters(f)
+    substeps = max(1, int(np.ceil((1.0 / fps) / dt - 1e-9)))
+    dt_used = (1.0 / fps) / substeps
+    n_settle = int(round(settle / dt_used))
+    g = _gravity(eff)
+    legs0 = fr0["legs"][0]
+    rad = float(mot["leg_radius"])
+    leg_xml = "".join(
+        f'<body name="leg{k}" mocap="true" pos="0 0 0"><geom name="leg{k}" type="capsule" '
+        f'fromto="{" ".join(map(str, legs0[k, 0]))} {" ".join(map(str, legs0[k, 1]))}" size="{rad}" '
+        f'contype="1" conaffinity="1" rgba=".8 .6 .5 1"/></body>'
+        for k in range(2)
+    )
+    xml = f"""
+<mujoco model="skirt">
+  <option timestep="{dt_used}" integrator="discrete" solver="Newton" tolerance="1e-10"
+          gravity="{g[0]} {g[1]} {g[2]}"/>
+  <size memory="128M"/>
+  <worldbody>
+    {leg_xml}
+    <flexcomp name="skirt" type="direct" dim="2" point="{" ".join(map(str, pts0.ravel()))}"
+              element="{" ".join(map(str, tris.ravel()))}" mass="{f['areal_density'] * area}" radius="0.004">
+      <contact contype="1" conaffinity="1" selfcollide="none" condim="3" friction="0.4"
+               solref="0.004 1" margin="0.002"/>
+      <edge equality="false"/>
+      <elasticity young="{young}" poisson="{f['poisson']}" thickness="{thick}"
+                  damping="{f['damping']}" elastic2d="both"/>
+    </flexcomp>
+  </worldbody>
+</mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    x0 = d.flexvert_xpos.copy()
+    faces = m.flex_elem.reshape(-1, 3).astype(np.int64)
+    vbody = m.flex_vertbodyid.astype(np.int64)
+    top = np.arange(around)
+    _make_grips(m, d, [int(vbody[i]) for i in top])
+    kin = _Kinematic(m, d, [int(vbody[i]) for i in top])
+    vel_of = _VertexVelocity(m, d, vbody)
+    free = np.ones(len(x0), bool)
+    free[top] = False
+    fbody = vbody[free]
+    air_on = bool(eff["air_drag"]["on"] or eff["wind"]["on"])
+    rho = float(eff["air_drag"]["density"])
+    leg_mocap = [int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"leg{k}")]) for k in range(2)]
+    # mocap leg bodies: geoms are placed in world coordinates at t = 0; move the body by the
+    # rigid transform of each leg relative to its t = 0 pose.
+    leg_axis0 = [legs0[k, 1] - legs0[k, 0] for k in range(2)]
+
+    def waist_pts(t: float) -> np.ndarray:
+        fr = skirt_frames(mot, np.array([t]))
+        return fr["waist_pos"][0] + pts_local[top] @ fr["waist_rot"][0].T, fr["legs"][0]
+
+    def grip_state(t: float) -> tuple[np.ndarray, np.ndarray]:
+        e = 1e-4
+        pm, lm = waist_pts(t - e)
+        pc, legs = waist_pts(t)
+        pp, lp = waist_pts(t + e)
+        for k in range(2):  # legs follow kinematically (mocap: position + orientation)
+            q = _quat_between(leg_axis0[k], legs[k, 1] - legs[k, 0])
+            rot = np.empty(9)
+            mujoco.mju_quat2Mat(rot, q)
+            d.mocap_quat[leg_mocap[k]] = q
+            d.mocap_pos[leg_mocap[k]] = legs[k, 0] - rot.reshape(3, 3) @ legs0[k, 0]
+        return pc, (pp - pm) / (2 * e)
+
+    def apply_forces(t: float) -> None:
+        x = d.flexvert_xpos
+        force = air_forces(x, vel_of(d), faces, _wind_at(eff, t, gust_phases), rho,
+                           f["drag"], f["lift"], f["friction"])
+        d.xfrc_applied[fbody, :3] = force[free]
+
+    out, _, failure, wall = _drive(
+        m, d, kin, grip_state, apply_forces if air_on else None,
+        n_settle, n_frames, fps, substeps, dt_used, L + r1,
+    )
+    n_done = len(out)
+    body = skirt_frames(mot, times[:n_done])
+    depth = np.array([max(_capsule_depth(out[i], body["legs"][i, k, 0], body["legs"][i, k, 1], rad).max()
+                          for k in range(2)) for i in range(n_done)]) if n_done else np.zeros(0)
+    truth = {
+        "engine": f"mujoco {mujoco.__version__} flexcomp dim=2 (direct), integrator=discrete",
+        "fabric": dict(fabric),
+        "shell": {"young_pa": young, "thickness_m": thick, "mass_kg": f["areal_density"] * area},
+        "shape": shp,
+        "motion": {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else v) for k, v in mot.items()},
+        "effects": eff,
+        "waist_vertex_ids": top.tolist(),
+        "rest_vertices": x0,
+        "max_leg_penetration_m": depth,
+        "rings": int(rings),
+        "around": int(around),
+        "dt_s": dt_used,
+        "substeps_per_frame": substeps,
+        "settle_s": n_settle * dt_used,
+        "wall_time_s": wall,
+        "gravity": g.tolist(),
+    }
+    return ClothRealityRun(
+        vertices=out, faces=faces, times=times[:n_done], corner_paths_measured=np.zeros((n_done, 0, 3)),
+        truth=truth, ok=failure is None, failure=failure,
+        colliders={"capsules": body["legs"], "radii": np.full(2, rad),
+                   "waist_pos": body["waist_pos"], "waist_rot": body["waist_rot"]},
+    )
+
+
+def _quat_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) rotating direction ``a`` onto direction ``b``."""
+    a = a / np.linalg.norm(a)
+    b = b / np.linalg.norm(b)
+    c = np.cross(a, b)
+    w = 1.0 + float(a @ b)
+    if w < 1e-9:  # opposite: rotate pi about any axis perpendicular to a
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        q = np.concatenate([[0.0], axis / np.linalg.norm(axis)])
+    else:
+        q = np.concatenate([[w], c])
+    return q / np.linalg.norm(q)
