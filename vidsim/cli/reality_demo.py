@@ -19,7 +19,8 @@ from vidsim.io.footage import read_calibration, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.demo import box_mesh, demo_motion
-from vidsim.reality.imaging import distort_image, sensor, textured_wall
+from vidsim.reality.imaging import sensor, textured_wall
+from vidsim.video.camera import PinholeCamera
 from vidsim.report.figures import contact_sheet
 
 
@@ -36,6 +37,8 @@ def run(cfg: DictConfig) -> None:
     V, F = box_mesh()
     from vidsim.render.scene import MeshItem, Renderer
 
+    # the lens: the true camera's distortion plus the effect the calibration does not know
+    lens = PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, cam.dist + [cfg.effects.imaging.lens_k1, 0, 0, 0, 0])
     renderer = Renderer(cam.width, cam.height)
     wall = textured_wall(cam.width, cam.height, rng)
     frames = []
@@ -49,9 +52,8 @@ def run(cfg: DictConfig) -> None:
             if motion.visible[i]:
                 Vw = V @ motion.R[i].T + motion.X[i]
                 items.append(MeshItem(Vw, F, color=(0.85, 0.25, 0.15)))
-            res = renderer.render(items, cam, background=wall)
-            img = distort_image(res.color, cam, cam.dist + np.array([cfg.effects.imaging.lens_k1, 0, 0, 0, 0]))
-            img = sensor(img, rng, cfg.render.noise_sigma, cfg.render.jpeg_quality, cfg.render.blur_sigma_px)
+            res = renderer.render(items, lens, background=wall)  # applies the lens distortion
+            img = sensor(res.color, rng, cfg.render.noise_sigma, cfg.render.jpeg_quality, cfg.render.blur_sigma_px)
             frames.append(img)
             lg.set_frame(i)
             lg.image("footage/camera/image", img)

@@ -1,4 +1,5 @@
-"""What a real camera does to a perfect render: lens distortion, blur, sensor noise, compression.
+"""What a real camera does to a perfect render: blur, sensor noise, compression (lens distortion is
+applied by the renderer from the camera's ``dist``).
 
 Pure functions of an image and a random generator, used by every reality generator so that
 footage has the imperfections of a real recording.
@@ -9,23 +10,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vidsim.video.camera import PinholeCamera
-
-
-def distort_image(img: np.ndarray, cam: PinholeCamera, dist: np.ndarray) -> np.ndarray:
-    """Resample an ideal-pinhole image (H,W[,C]) as seen through a lens with OpenCV ``dist``.
-
-    For each output (distorted) pixel the undistorted source position is found with
-    ``cv2.undistortPoints`` and sampled bilinearly.
-    """
-    dist = np.asarray(dist, float)
-    if not np.any(dist):
-        return img
-    h, w = img.shape[:2]
-    u, v = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    pts = np.stack([u.ravel(), v.ravel()], axis=1)[:, None, :]
-    und = cv2.undistortPoints(pts, cam.K, dist, P=cam.K).reshape(h, w, 2)
-    return cv2.remap(img, und[..., 0], und[..., 1], interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def sensor(
