@@ -14,6 +14,9 @@ report: "workflow/report/workflow.rst"
 include: "workflow/rules/common.smk"
 include: "workflow/rules/calibration.smk"
 include: "workflow/rules/demo.smk"
+include: "workflow/rules/rigid.smk"
+include: "workflow/rules/cloth.smk"
+include: "workflow/rules/fluid.smk"
 
 
 rule all:
