@@ -41,6 +41,11 @@ class SegmentConfig:
         keep: "largest" (one object) or "all".
         gain: compensate a global brightness gain per frame.
         mixed_fraction: rim pixels need this fraction of the nearby core contrast (0: off).
+        clutter_fraction: pixels that are foreground in more than this fraction of the frames
+            (vibrating edges, flicker) are treated as background clutter (1: off). A thrown
+            object crosses any pixel in only a few frames.
+        clutter_dilate: clutter is grown by this radius, pixels.
+        max_area: components larger than this are dropped (0: no limit), pixels.
     """
 
     k_sigma: float = 5.0
@@ -52,6 +57,9 @@ class SegmentConfig:
     keep: str = "largest"
     gain: bool = True
     mixed_fraction: float = 0.5
+    clutter_fraction: float = 1.0
+    clutter_dilate: int = 2
+    max_area: int = 0
 
     def validate(self) -> None:
         """Raise :class:`SegmentError` naming the field when a setting is unusable."""
@@ -63,6 +71,8 @@ class SegmentConfig:
                 raise SegmentError(f"segment: '{name}' must be >= 0, got {getattr(self, name)}")
         if self.keep not in ("largest", "all"):
             raise SegmentError(f"segment: 'keep' must be 'largest' or 'all', got {self.keep!r}")
+        if not 0 < self.clutter_fraction <= 1:
+            raise SegmentError(f"segment: 'clutter_fraction' must be in (0, 1], got {self.clutter_fraction}")
 
 
 @dataclass
@@ -117,14 +127,16 @@ def _clean(mask: np.ndarray, cfg: SegmentConfig) -> np.ndarray:
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * cfg.close_px + 1,) * 2)
         m = cv2.morphologyEx(m, cv2.MORPH_CLOSE, k)
     n, lab, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
-    areas = stats[1:, cv2.CC_STAT_AREA]
+    areas = stats[1:, cv2.CC_STAT_AREA].copy()
+    if cfg.max_area > 0:
+        areas[areas > cfg.max_area] = 0
     keep = np.zeros(n, bool)
     if n > 1:
         if cfg.keep == "largest":
             j = int(np.argmax(areas))
-            keep[1 + j] = areas[j] >= cfg.min_area
+            keep[1 + j] = areas[j] >= max(cfg.min_area, 1)
         else:
-            keep[1:] = areas >= cfg.min_area
+            keep[1:] = areas >= max(cfg.min_area, 1)
     out = keep[lab].astype(np.uint8)
     # fill holes: background not reachable from the border
     if out.any():
@@ -169,10 +181,19 @@ def segment(frames: np.ndarray, model: BackgroundModel | None = None, cfg: Segme
     cfg.validate()
     f = _check_frames(frames)
     model = model or fit_background(f, background_frames, cfg)
-    out = np.zeros(f.shape[:3], bool)
+    raw = np.zeros(f.shape[:3], bool)
     for k in range(f.shape[0]):
         z, d = foreground_score(f[k], model, cfg.gain)
-        m = _clean((z > cfg.k_sigma) & (d > cfg.min_diff), cfg)
+        raw[k] = (z > cfg.k_sigma) & (d > cfg.min_diff)
+    clutter = np.zeros(f.shape[1:3], bool)
+    if cfg.clutter_fraction < 1.0:
+        clutter = raw.mean(0) > cfg.clutter_fraction
+        if cfg.clutter_dilate > 0:
+            k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * cfg.clutter_dilate + 1,) * 2)
+            clutter = cv2.dilate(clutter.astype(np.uint8), k) > 0
+    out = np.zeros(f.shape[:3], bool)
+    for k in range(f.shape[0]):
+        m = _clean(raw[k] & ~clutter, cfg)
         if cfg.mixed_fraction > 0 and m.any():
             m = _rim_test(m, f[k], model, cfg)
         out[k] = m
