@@ -64,6 +64,7 @@ def validate(cfg: DictConfig) -> None:
     for k in ("exposure_s", "rolling_shutter_s", "time_jitter_s"):
         _check(_finite(im[k]) and im[k] >= 0, f"effects.imaging.{k}", im[k], ">= 0 s")
     _check(cfg.calibrate.n_views >= 3, "calibrate.n_views", cfg.calibrate.n_views, ">= 3 views")
+    _check(cfg.calibrate.n_projector_views >= 3, "calibrate.n_projector_views", cfg.calibrate.n_projector_views, ">= 3 views")
 
 
 def camera_from_config(c: DictConfig | Any) -> PinholeCamera:
@@ -77,6 +78,12 @@ def camera_from_config(c: DictConfig | Any) -> PinholeCamera:
         Rz = np.array([[math.cos(roll), -math.sin(roll), 0], [math.sin(roll), math.cos(roll), 0], [0, 0, 1]])
         R, t = Rz @ R, Rz @ t
     return PinholeCamera(intrinsics(c.fx, fy, cx, cy), R, t, c.width, c.height, np.array(c.dist, float))
+
+
+def projector_from_config(p: DictConfig | Any) -> PinholeCamera:
+    """The reality's projector (a pinhole, principal point at the centre) from a ``projector`` node."""
+    R, t = look_at(np.array(p.eye, float), np.array(p.target, float), np.array(p.up, float))
+    return PinholeCamera(intrinsics(p.fx, p.fx, (p.width - 1) / 2, (p.height - 1) / 2), R, t, p.width, p.height)
 
 
 def to_plain(cfg: DictConfig) -> dict:

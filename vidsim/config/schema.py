@@ -123,9 +123,9 @@ class RealityConfig:
 class CalibrateConfig:
     """Calibration stage: a planar target filmed at several poses."""
 
-    n_views: int = 12
-    noise_sigma: float = 1.0
-    with_projector: bool = False
+    n_views: int = 12  # camera views besides the reference view
+    n_projector_views: int = 16  # views with the projector's pattern (when projector.enabled)
+    noise_sigma: float = 2.0
     max_rms_px: float = 0.5  # the stage fails loudly above this
 
 
