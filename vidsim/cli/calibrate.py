@@ -40,8 +40,8 @@ def _score(name: str, est: PinholeCamera, true: PinholeCamera, X: np.ndarray) ->
     reproj = np.linalg.norm(est.project(X) - true.project(X), axis=1)
     rows = [f"{name}_{k},{est.K[i, j]:.3f},{true.K[i, j]:.3f},{est.K[i, j] - true.K[i, j]:+.3f}"
             for k, (i, j) in {"fx": (0, 0), "fy": (1, 1), "cx": (0, 2), "cy": (1, 2)}.items()]
-    rows.append(f"{name}_centre_m,{np.round(est.center, 4).tolist()},{np.round(true.center, 4).tolist()},"
-                f"{np.linalg.norm(est.center - true.center):.4f}")
+    xyz = lambda c: " ".join(f"{v:.4f}" for v in c)  # noqa: E731  (no commas inside a CSV cell)
+    rows.append(f"{name}_centre_m,{xyz(est.center)},{xyz(true.center)},{np.linalg.norm(est.center - true.center):.4f}")
     rows.append(f"{name}_scene_reprojection_px_median,{np.median(reproj):.4f},,")
     rows.append(f"{name}_scene_reprojection_px_max,{reproj.max():.4f},,")
     return rows
