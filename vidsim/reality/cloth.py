@@ -839,7 +839,7 @@ def simulate_skirt(
   <worldbody>
     {leg_xml}
     <flexcomp name="skirt" type="direct" dim="2" point="{" ".join(map(str, pts0.ravel()))}"
-              element="{" ".join(map(str, tris.ravel()))}" mass="{f['areal_density'] * area}" radius="0.004">
+              element="{" ".join(map(str, tris.ravel()))}" mass="{f['areal_density'] * area}" radius="0.012">
       <contact contype="1" conaffinity="1" selfcollide="none" condim="3" friction="0.4"
                solref="0.004 1" margin="0.002"/>
       <edge equality="false"/>

@@ -13,7 +13,7 @@ from vidsim.reality.cloth import (
     skirt_motion,
 )
 
-SMALL = {"rings": 7, "around": 20, "n_frames": 20, "settle": 0.5}
+SMALL = {"rings": 8, "around": 24, "n_frames": 20, "settle": 0.5}
 
 
 @pytest.fixture(scope="module")
@@ -25,15 +25,17 @@ def skirts():
 def test_skirt_stays_on_the_waist_and_clear_of_the_legs(skirts):
     run = skirts["linen"]
     assert run.ok, run.failure
-    assert run.vertices.shape == (20, 7 * 20, 3) and np.isfinite(run.vertices).all()
+    assert run.vertices.shape == (20, 8 * 24, 3) and np.isfinite(run.vertices).all()
     body = skirt_frames(skirt_motion(), run.times)
     top = run.truth["waist_vertex_ids"]
     # the waistband rides the waist: its ring centre is the waist position, every frame
     np.testing.assert_allclose(run.vertices[:, top].mean(axis=1), body["waist_pos"], atol=1e-9)
     np.testing.assert_allclose(run.colliders["capsules"], body["legs"])
     # the hem hangs below the waist and the legs push the cloth instead of passing through it
-    hem = np.arange(6 * 20, 7 * 20)
+    hem = np.arange(7 * 24, 8 * 24)
     assert (run.vertices[:, hem, 2] < body["waist_pos"][:, None, 2] - 0.3).all()
+    # (vertex centres; measured 2.2 cm at most here, 0.9 cm on the default 9 x 28 mesh over 50
+    # frames, against a 6.5 cm leg radius: contact is soft, not absent)
     radius = run.colliders["radii"][0]
     assert run.truth["max_leg_penetration_m"].max() < 0.5 * radius
 
