@@ -11,7 +11,7 @@ import yaml
 
 def test_calibrate_stage_recovers_camera_and_projector(tmp_path):
     out = tmp_path / "calib"
-    r = subprocess.run([sys.executable, "-m", "vidsim.cli.calibrate", f"paths.out={out}", "projector=stripes",
+    r = subprocess.run([sys.executable, "-m", "vidsim.cli.calibrate", f"paths.results={tmp_path}", f"paths.out={out}", "projector=stripes",
                         "log.rerun=false"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     calib = yaml.safe_load((out / "calibration.yaml").read_text())

@@ -67,7 +67,7 @@ def test_camera_from_config_looks_at_target():
 
 def test_cli_bad_key_gives_one_clear_line(tmp_path):
     r = subprocess.run(
-        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.out={tmp_path}/o", "camera.fxx=3"],
+        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.results={tmp_path}", f"paths.out={tmp_path}/o", "camera.fxx=3"],
         capture_output=True, text=True, timeout=120,
     )
     assert r.returncode != 0
@@ -78,7 +78,7 @@ def test_cli_bad_key_gives_one_clear_line(tmp_path):
 def test_cli_missing_calibration_names_the_file(tmp_path):
     missing = tmp_path / "nope" / "calibration.yaml"
     r = subprocess.run(
-        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.out={tmp_path}/o", f"paths.calibration={missing}"],
+        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.results={tmp_path}", f"paths.out={tmp_path}/o", f"paths.calibration={missing}"],
         capture_output=True, text=True, timeout=120,
     )
     assert r.returncode == 2

@@ -25,6 +25,18 @@ from vidsim.errors import VidsimError  # noqa: E402
 log = logging.getLogger("vidsim")
 
 
+def check_paths(cfg: DictConfig) -> None:
+    """Every stage writes inside ``paths.results``: an output path that escapes it is an error."""
+    from pathlib import Path
+
+    from vidsim.errors import ConfigError
+
+    results = Path(cfg.paths.results).resolve()
+    out = Path(cfg.paths.out).resolve()
+    if out != results and results not in out.parents:
+        raise ConfigError(f"paths.out = {cfg.paths.out!r} escapes the results folder {str(results)!r} (paths.results)")
+
+
 def _fail(name: str, e: Exception) -> None:
     print(f"vidsim {name}: error: {e}", file=sys.stderr)
     sys.exit(2)
@@ -43,6 +55,7 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
         cv2.setNumThreads(int(os.environ.get("VIDSIM_OPENCV_THREADS", "1")))
         try:
             validate(cfg)
+            check_paths(cfg)
             run(cfg)
         except (VidsimError, FileNotFoundError) as e:
             _fail(name, e)

@@ -13,7 +13,7 @@ def stage_overrides(stage):
     depends on it (rerun trigger `params`), and nothing else.
     """
     own = config.get("overrides", {}).get(stage, "") or ""
-    return f"{HYDRA_EXTRA} {own}".strip()
+    return f"paths.results={RESULTS} {HYDRA_EXTRA} {own}".strip()
 
 
 def stage_enabled(name):

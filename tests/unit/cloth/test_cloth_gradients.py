@@ -131,11 +131,12 @@ def test_self_collision_force_is_minus_energy_gradient(rng):
     pairs = build_self_pairs(x, m.triangles, 3 * h, 0.02)
 
     def energy(xx):
-        return self_collision_forces(xx, m.triangles, m.vertex_area, pairs, k, h, np.zeros_like(xx))
+        return self_collision_forces(xx, m.triangles, m.vertex_area, pairs, k, h, np.zeros_like(xx),
+                                     m.vertex_valence, m.tri_edge_share)
 
     f = np.zeros_like(x)
     assert energy(x) > 0
-    self_collision_forces(x, m.triangles, m.vertex_area, pairs, k, h, f)
+    self_collision_forces(x, m.triangles, m.vertex_area, pairs, k, h, f, m.vertex_valence, m.tri_edge_share)
     _check(f, _fd_grad(energy, x, h=1e-9), 1e-3)
     # equal and opposite: no net force
     assert np.allclose(f.sum(axis=0), 0.0, atol=1e-12 * np.abs(f).max() * n)
