@@ -27,7 +27,10 @@ Physics (MuJoCo >= 4.0 ``flexcomp``, ``dim=2``)
       edges, ``f = -k (eps + c3 eps^3)``, with the time step reduced to keep them stable.
       Bending plasticity (``yield``) is available in MuJoCo but not used here.
     * The gripped corners are kinematic: before every step their slide joints are set to the
-      prescribed position and velocity (a rigid grip). With grip slip on, the *true* corner path
+      prescribed position and velocity (a rigid grip). Their bodies are made heavy (1 kg,
+      gravity-compensated): the discrete integrator solves all flex dofs implicitly inside a
+      step, and a light gripped vertex would follow the cloth within the step, leaving the cloth
+      hanging ~100 % over-stretched at the grip (seen, then fixed; tested). With grip slip on, the *true* corner path
       (used by the simulation) differs from the *measured* one (returned as the known input).
 
 Frames: world z up, gravity -z; the swatch hangs in the x-z plane (y = 0 at rest), its top edge
@@ -302,10 +305,9 @@ def air_forces(
     cos_a = np.sqrt(np.clip(1 - sin_a**2, 0.0, 1.0))
     lift = c_lift * q * speed**2 * sin_a * cos_a
     f += (lift / np.maximum(pn, 1e-12))[:, None] * perp * (pn > 1e-9)[:, None]
-    out = np.zeros_like(x)
-    for k in range(3):
-        np.add.at(out, faces[:, k], f / 3.0)
-    return out
+    idx = faces.ravel()
+    fv = np.repeat(f / 3.0, 3, axis=0)
+    return np.stack([np.bincount(idx, weights=fv[:, c], minlength=len(x)) for c in range(3)], axis=1)
 
 
 def _wind_at(eff: dict[str, Any], t: float, phases: np.ndarray) -> np.ndarray:

@@ -153,3 +153,13 @@ def test_bad_inputs_raise_clear_errors():
         cloth_metric(z, z, z, np.zeros((2, 5, 6)), z)
     with pytest.raises(AngleMapError, match="alpha"):
         cloth_metric(z, z, z, z, z, alpha=-1.0)
+
+
+def test_fused_coefficients_equal_reference_formulas(rng):
+    """The numba kernel used on float32 images computes the same C1..C3 as the NumPy formulas."""
+    r32 = tuple(rng.normal(size=(17, 23)).astype(np.float32) for _ in range(7))
+    fused = energy_coefficients(r32)  # 2-D float32: numba path
+    ref = energy_coefficients(tuple(x.astype(np.float64) for x in r32))  # NumPy path
+    for a, b in zip(fused, ref):
+        assert a.dtype == np.float32
+        np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
