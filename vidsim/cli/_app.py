@@ -66,5 +66,29 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
                 _fail(name, e)
             raise
 
-    _main.__name__ = name
-    return _main
+    def _entry() -> None:
+        _precheck_overrides(name, sys.argv[1:])
+        _main()
+
+    _entry.__name__ = name
+    return _entry
+
+
+def _precheck_overrides(name: str, args: list[str]) -> None:
+    """Compose the config once before Hydra does, to turn a bad override (unknown key, wrong
+    type) into one line instead of Hydra's multi-line report. Sweeps and Hydra flags
+    (arguments starting with '-') are left to Hydra."""
+    if any(a.startswith("-") for a in args):
+        return
+    from hydra import compose, initialize_config_dir
+    from hydra.errors import HydraException
+
+    try:
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            compose("config", overrides=args)
+    except HydraException as e:
+        first = str(e).strip().splitlines()[0]
+        cause = e.__cause__
+        why = str(cause).strip().splitlines()[0] if cause is not None and str(cause).strip() else ""
+        print(f"vidsim {name}: error: {first}{' ' + why if why and why not in first else ''}", file=sys.stderr)
+        sys.exit(2)

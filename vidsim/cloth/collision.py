@@ -6,11 +6,14 @@ surface feels a pressure ``k (h - d)`` [Pa = N/m^2] times its lumped rest area, 
 the potential energy ``k A_p (h - d)^2 / 2``. Being per area, the contact stiffness is
 resolution independent (contact frequency sqrt(k / density)).
 
-Self collision is vertex-triangle repulsion (the vertex and the triangle's three corners
-get equal and opposite forces, so momentum is conserved). Culling uses a Verlet list:
-candidate (vertex, triangle) pairs within ``2 h`` are found with a uniform hash grid
-(cost linear in mesh size) and reused until some vertex has moved more than ``h / 2``
-since the list was built, which guarantees that no pair closer than ``h`` is missed.
+Self collision is vertex-triangle plus edge-edge repulsion (the closest points get equal
+and opposite forces shared by the corners with barycentric weights, so linear and
+angular momentum are conserved); edge-edge contacts catch crossing creases that no
+vertex comes near. Culling uses a Verlet list:
+candidate (vertex, triangle) and (edge, edge) pairs within ``3 h`` are found with a
+uniform hash grid (cost linear in mesh size) and reused until some vertex has moved more
+than ``h`` since the list was built, which guarantees that no pair closer than ``h`` is
+missed.
 """
 
 from __future__ import annotations
@@ -27,6 +30,8 @@ __all__ = [
     "collider_forces",
     "build_self_pairs",
     "self_collision_forces",
+    "build_edge_pairs",
+    "edge_collision_forces",
     "closest_point_triangle",
     "count_self_intersections",
 ]
@@ -347,15 +352,22 @@ def self_collision_forces(
     k: float,
     h: float,
     f: np.ndarray,
+    vshare: np.ndarray,
+    eshare: np.ndarray,
 ) -> float:
     """Add vertex-triangle repulsion for candidate ``pairs`` to ``f``; return energy [J].
 
-    Energy per pair: k A_p (h - d)^2 / 2 for d < h, d the vertex-triangle distance.
+    Energy per pair: w k A_p (h - d)^2 / 2 for d < h, d the vertex-triangle distance and
+    w = 1 when the closest point is inside the triangle, 1/(triangles sharing the edge)
+    when it is on an edge, 1/(triangles sharing the vertex) when it is a corner, so that
+    a vertex facing a shared feature is not pushed several times over.
 
     Args:
         x: (N, 3) [m]. tris: (M, 3). vert_area: (N,) [m^2].
         pairs: (P, 2) (vertex, triangle) from :func:`build_self_pairs`.
         k: [N/m^3]. h: thickness [m]. f: (N, 3) accumulator [N].
+        vshare: (N,) triangles per vertex. eshare: (M, 3) triangles sharing the edge
+            opposite each corner.
     """
     energy = 0.0
     for q in range(pairs.shape[0]):
@@ -373,7 +385,20 @@ def self_collision_forces(
             continue
         d = math.sqrt(dd)
         pen = h - d
-        kk = k * vert_area[p]
+        wsh = 1.0
+        if wa == 0.0 and wb == 0.0:
+            wsh = 1.0 / vshare[kk_]
+        elif wa == 0.0 and wc == 0.0:
+            wsh = 1.0 / vshare[j]
+        elif wb == 0.0 and wc == 0.0:
+            wsh = 1.0 / vshare[i]
+        elif wa == 0.0:
+            wsh = 1.0 / eshare[t, 0]
+        elif wb == 0.0:
+            wsh = 1.0 / eshare[t, 1]
+        elif wc == 0.0:
+            wsh = 1.0 / eshare[t, 2]
+        kk = k * vert_area[p] * wsh
         energy += 0.5 * kk * pen * pen
         s = kk * pen / d
         g0 = s * d0
@@ -455,3 +480,186 @@ def count_self_intersections(x: np.ndarray, tris: np.ndarray, edges: np.ndarray)
             if _seg_tri(x[a, 0], x[a, 1], x[a, 2], x[b, 0], x[b, 1], x[b, 2], x, i, j, k):
                 n += 1
     return n
+
+
+@njit(cache=True)
+def closest_params_segments(
+    x: np.ndarray, a0: int, a1: int, b0: int, b1: int
+) -> tuple[float, float]:
+    """Parameters (s, t) in [0, 1] of the closest points of segments a0-a1 and b0-b1.
+
+    Ericson, Real-Time Collision Detection, section 5.1.9.
+    """
+    d1x = x[a1, 0] - x[a0, 0]; d1y = x[a1, 1] - x[a0, 1]; d1z = x[a1, 2] - x[a0, 2]
+    d2x = x[b1, 0] - x[b0, 0]; d2y = x[b1, 1] - x[b0, 1]; d2z = x[b1, 2] - x[b0, 2]
+    rx = x[a0, 0] - x[b0, 0]; ry = x[a0, 1] - x[b0, 1]; rz = x[a0, 2] - x[b0, 2]
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    c = d1x * rx + d1y * ry + d1z * rz
+    b = d1x * d2x + d1y * d2y + d1z * d2z
+    den = a * e - b * b
+    s = 0.0
+    if den > 1e-12 * a * e:
+        s = min(1.0, max(0.0, (b * f - c * e) / den))
+    t = (b * s + f) / e
+    if t < 0.0:
+        t = 0.0
+        s = min(1.0, max(0.0, -c / a))
+    elif t > 1.0:
+        t = 1.0
+        s = min(1.0, max(0.0, (b - c) / a))
+    return s, t
+
+
+@njit(cache=True)
+def build_edge_pairs(x: np.ndarray, edges: np.ndarray, radius: float, cell: float) -> np.ndarray:
+    """Candidate pairs of edges sharing no vertex and closer than ``radius`` [m].
+
+    Edge midpoints go into a hash grid; each edge searches its bounding box grown by
+    ``radius`` plus half the longest current edge.
+
+    Args:
+        x: (N, 3) [m]. edges: (K, 2) int unique edges. radius, cell: [m].
+
+    Returns:
+        (P, 2) int array of edge indices (a < b).
+    """
+    K = edges.shape[0]
+    half = 0.0
+    for e in range(K):
+        i = edges[e, 0]
+        j = edges[e, 1]
+        l2 = (x[i, 0] - x[j, 0]) ** 2 + (x[i, 1] - x[j, 1]) ** 2 + (x[i, 2] - x[j, 2]) ** 2
+        half = max(half, 0.5 * math.sqrt(l2))
+    size = 1
+    while size < 2 * K:
+        size *= 2
+    inv = 1.0 / cell
+    ec = np.empty((K, 3), dtype=np.int64)
+    hv = np.empty(K, dtype=np.int64)
+    count = np.zeros(size + 1, dtype=np.int64)
+    for e in range(K):
+        i = edges[e, 0]
+        j = edges[e, 1]
+        cx = int(math.floor(0.5 * (x[i, 0] + x[j, 0]) * inv))
+        cy = int(math.floor(0.5 * (x[i, 1] + x[j, 1]) * inv))
+        cz = int(math.floor(0.5 * (x[i, 2] + x[j, 2]) * inv))
+        ec[e, 0] = cx
+        ec[e, 1] = cy
+        ec[e, 2] = cz
+        hh = _hash(cx, cy, cz, size)
+        hv[e] = hh
+        count[hh + 1] += 1
+    for b in range(size):
+        count[b + 1] += count[b]
+    order = np.empty(K, dtype=np.int64)
+    fill = count[:-1].copy()
+    for e in range(K):
+        order[fill[hv[e]]] = e
+        fill[hv[e]] += 1
+    cap = 2 * K + 16
+    pairs = np.empty((cap, 2), dtype=np.int64)
+    npairs = 0
+    grow = radius + half
+    r2 = radius * radius
+    for ea in range(K):
+        a0 = edges[ea, 0]
+        a1 = edges[ea, 1]
+        lo0 = min(x[a0, 0], x[a1, 0]) - grow
+        lo1 = min(x[a0, 1], x[a1, 1]) - grow
+        lo2 = min(x[a0, 2], x[a1, 2]) - grow
+        hi0 = max(x[a0, 0], x[a1, 0]) + grow
+        hi1 = max(x[a0, 1], x[a1, 1]) + grow
+        hi2 = max(x[a0, 2], x[a1, 2]) + grow
+        for cx in range(int(math.floor(lo0 * inv)), int(math.floor(hi0 * inv)) + 1):
+            for cy in range(int(math.floor(lo1 * inv)), int(math.floor(hi1 * inv)) + 1):
+                for cz in range(int(math.floor(lo2 * inv)), int(math.floor(hi2 * inv)) + 1):
+                    hh = _hash(cx, cy, cz, size)
+                    for q in range(count[hh], count[hh + 1]):
+                        eb = order[q]
+                        if eb <= ea:
+                            continue
+                        if ec[eb, 0] != cx or ec[eb, 1] != cy or ec[eb, 2] != cz:
+                            continue
+                        b0 = edges[eb, 0]
+                        b1 = edges[eb, 1]
+                        if b0 == a0 or b0 == a1 or b1 == a0 or b1 == a1:
+                            continue
+                        if (max(x[b0, 0], x[b1, 0]) < lo0 + half or min(x[b0, 0], x[b1, 0]) > hi0 - half
+                                or max(x[b0, 1], x[b1, 1]) < lo1 + half or min(x[b0, 1], x[b1, 1]) > hi1 - half
+                                or max(x[b0, 2], x[b1, 2]) < lo2 + half or min(x[b0, 2], x[b1, 2]) > hi2 - half):
+                            continue
+                        s, t = closest_params_segments(x, a0, a1, b0, b1)
+                        d0 = (1 - s) * x[a0, 0] + s * x[a1, 0] - (1 - t) * x[b0, 0] - t * x[b1, 0]
+                        d1 = (1 - s) * x[a0, 1] + s * x[a1, 1] - (1 - t) * x[b0, 1] - t * x[b1, 1]
+                        d2 = (1 - s) * x[a0, 2] + s * x[a1, 2] - (1 - t) * x[b0, 2] - t * x[b1, 2]
+                        if d0 * d0 + d1 * d1 + d2 * d2 >= r2:
+                            continue
+                        if npairs == cap:
+                            cap *= 2
+                            new = np.empty((cap, 2), dtype=np.int64)
+                            new[:npairs] = pairs[:npairs]
+                            pairs = new
+                        pairs[npairs, 0] = ea
+                        pairs[npairs, 1] = eb
+                        npairs += 1
+    return pairs[:npairs].copy()
+
+
+@njit(cache=True)
+def edge_collision_forces(
+    x: np.ndarray,
+    edges: np.ndarray,
+    vert_area: np.ndarray,
+    epairs: np.ndarray,
+    k: float,
+    h: float,
+    f: np.ndarray,
+) -> float:
+    """Add edge-edge repulsion for candidate ``epairs`` to ``f``; return energy [J].
+
+    Energy per pair: k A (h - d)^2 / 2 for d < h, d the segment-segment distance and A
+    the mean lumped area of the four end points [m^2], counted only when both closest
+    points are inside their segments (otherwise a vertex-triangle contact covers it).
+    Forces act at the closest points and are shared by the end points with the segment
+    parameters (momentum conserving).
+    """
+    energy = 0.0
+    for q in range(epairs.shape[0]):
+        ea = epairs[q, 0]
+        eb = epairs[q, 1]
+        a0 = edges[ea, 0]
+        a1 = edges[ea, 1]
+        b0 = edges[eb, 0]
+        b1 = edges[eb, 1]
+        s, t = closest_params_segments(x, a0, a1, b0, b1)
+        if s <= 0.0 or s >= 1.0 or t <= 0.0 or t >= 1.0:
+            continue  # an end point is closest: a vertex-triangle contact covers it
+        d0 = (1 - s) * x[a0, 0] + s * x[a1, 0] - (1 - t) * x[b0, 0] - t * x[b1, 0]
+        d1 = (1 - s) * x[a0, 1] + s * x[a1, 1] - (1 - t) * x[b0, 1] - t * x[b1, 1]
+        d2 = (1 - s) * x[a0, 2] + s * x[a1, 2] - (1 - t) * x[b0, 2] - t * x[b1, 2]
+        dd = d0 * d0 + d1 * d1 + d2 * d2
+        if dd >= h * h or dd < 1e-30:
+            continue
+        d = math.sqrt(dd)
+        pen = h - d
+        kk = k * 0.25 * (vert_area[a0] + vert_area[a1] + vert_area[b0] + vert_area[b1])
+        energy += 0.5 * kk * pen * pen
+        g = kk * pen / d
+        g0 = g * d0
+        g1 = g * d1
+        g2 = g * d2
+        f[a0, 0] += (1 - s) * g0
+        f[a0, 1] += (1 - s) * g1
+        f[a0, 2] += (1 - s) * g2
+        f[a1, 0] += s * g0
+        f[a1, 1] += s * g1
+        f[a1, 2] += s * g2
+        f[b0, 0] -= (1 - t) * g0
+        f[b0, 1] -= (1 - t) * g1
+        f[b0, 2] -= (1 - t) * g2
+        f[b1, 0] -= t * g0
+        f[b1, 1] -= t * g1
+        f[b1, 2] -= t * g2
+    return energy

@@ -2,10 +2,11 @@
 
 * ``_rk45_loop``: Dormand-Prince 5(4) with embedded error control and a PI step-size
   controller (the seed's adaptive explicit Runge-Kutta), the reference scheme.
-* ``_symplectic_loop``: semi-implicit (symplectic) Euler at a fixed sub-step chosen from
-  the stiffest mode (velocity update first, then positions with the new velocity). It is
-  symplectic, so it adds no artificial damping to undamped oscillations; its only cost is
-  the stability limit h < 2/omega_max.
+* ``_symplectic_loop``: velocity Verlet (kick-drift-kick; symplectic Euler's second-order,
+  time-symmetric sibling) at a fixed sub-step chosen from the stiffest mode, one force
+  evaluation per step. Symplectic, so it adds no artificial damping to undamped
+  oscillations; its only constraint is the stability limit h < 2/omega_max.
+  Velocity-dependent forces (damping, drag) use the half-step velocity (explicit).
 
 Both call ``_accel`` which evaluates all forces at (t, x, v). Driven vertices take the
 driver's position/velocity at every evaluation and the driver's acceleration as their
@@ -20,7 +21,13 @@ import math
 import numpy as np
 from numba import njit
 
-from vidsim.cloth.collision import build_self_pairs, collider_forces, self_collision_forces
+from vidsim.cloth.collision import (
+    build_edge_pairs,
+    build_self_pairs,
+    collider_forces,
+    edge_collision_forces,
+    self_collision_forces,
+)
 from vidsim.cloth.forces import bend_forces, drag_forces, gravity_forces, stretch_shear_forces
 
 STATUS_TEXT = {
@@ -105,13 +112,15 @@ def _accel(
     dwork: np.ndarray,
     col: tuple,
     pairs: np.ndarray,
+    epairs: np.ndarray,
     xref: np.ndarray,
-) -> np.ndarray:
+) -> tuple:
     """Accelerations at (t, x, v) into ``acc``; driven rows of x, v are overwritten.
 
-    Returns the (possibly rebuilt) self-collision candidate pairs.
+    Returns the (possibly rebuilt) self-collision candidate pairs
+    (vertex-triangle, edge-edge).
     """
-    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind = model
+    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare = model
     didx, dtimes, dpos, dvel = drv
     ctimes, sc, sr, ca, cb, cr = col
     D = didx.shape[0]
@@ -130,8 +139,8 @@ def _accel(
     collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
     if P[P_SELFON] > 0:
         h = P[P_SELFH]
-        # Verlet-list validity: rebuild when any vertex moved more than h/2
-        lim = 0.25 * h * h
+        # Verlet list searched within 3h: valid until some vertex moved more than h
+        lim = h * h
         rebuild = pairs.shape[0] == 1 and pairs[0, 0] < 0
         if not rebuild:
             for i in range(x.shape[0]):
@@ -142,11 +151,11 @@ def _accel(
                     rebuild = True
                     break
         if rebuild:
-            pairs = build_self_pairs(x, tris, 2.0 * h, P[P_CELL])
+            pairs = build_self_pairs(x, tris, 3.0 * h, P[P_CELL])
+            epairs = build_edge_pairs(x, uedges, 3.0 * h, P[P_CELL])
             xref[:] = x
-            if pairs.shape[0] == 0:
-                pairs = np.zeros((0, 2), dtype=np.int64)
-        self_collision_forces(x, tris, vert_area, pairs, P[P_SELFK], h, f)
+        self_collision_forces(x, tris, vert_area, pairs, P[P_SELFK], h, f, vshare, eshare)
+        edge_collision_forces(x, uedges, vert_area, epairs, P[P_SELFK], h, f)
     N = x.shape[0]
     for i in range(N):
         im = 1.0 / mass[i]
@@ -157,7 +166,7 @@ def _accel(
         i = didx[d]
         for c in range(3):
             acc[i, c] = dwork[2, d, c]
-    return pairs
+    return pairs, epairs
 
 
 @njit(cache=True)
@@ -234,11 +243,12 @@ def _rk45_loop(
     f = np.zeros((N, 3))
     xref = x.copy()
     pairs = -np.ones((1, 2), dtype=np.int64)
+    epairs = np.zeros((0, 2), dtype=np.int64)
     t = t0
     _set_driven(t, x, v, drv, dwork)
     xs[:] = x
     vs[:] = v
-    pairs = _accel(t, xs, vs, KV[0], f, model, P, drv, dwork, col, pairs, xref)
+    pairs, epairs = _accel(t, xs, vs, KV[0], f, model, P, drv, dwork, col, pairs, epairs, xref)
     KX[0] = vs
     h = h_init
     steps = 0
@@ -273,7 +283,7 @@ def _rk45_loop(
                             for c in range(3):
                                 xs[i, c] += hs * a * KX[j, i, c]
                                 vs[i, c] += hs * a * KV[j, i, c]
-                pairs = _accel(t + C[s] * hs, xs, vs, KV[s], f, model, P, drv, dwork, col, pairs, xref)
+                pairs, epairs = _accel(t + C[s] * hs, xs, vs, KV[s], f, model, P, drv, dwork, col, pairs, epairs, xref)
                 KX[s] = vs
             nevals += 6
             # stage 6 state is the 5th-order solution (FSAL); error estimate
@@ -352,8 +362,10 @@ def _symplectic_loop(
     f = np.zeros((N, 3))
     xref = x.copy()
     pairs = -np.ones((1, 2), dtype=np.int64)
+    epairs = np.zeros((0, 2), dtype=np.int64)
     t = t0
     _set_driven(t, x, v, drv, dwork)
+    pairs, epairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, epairs, xref)
     steps = 0
     status = 0
     fi = 0
@@ -370,12 +382,16 @@ def _symplectic_loop(
             if steps >= max_steps:
                 status = 4
                 break
-            pairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, xref)
+            # velocity Verlet (kick-drift-kick), one force evaluation per step (FSAL)
             for i in range(N):
                 for c in range(3):
-                    v[i, c] += h * acc[i, c]
+                    v[i, c] += 0.5 * h * acc[i, c]
                     x[i, c] += h * v[i, c]
             t = target if s == n_sub - 1 else t + h
+            pairs, epairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, epairs, xref)
+            for i in range(N):
+                for c in range(3):
+                    v[i, c] += 0.5 * h * acc[i, c]
             _set_driven(t, x, v, drv, dwork)
             steps += 1
             st = _check(x, v, vmax)

@@ -40,6 +40,8 @@ class ClothMesh:
         bend_coef: (E,) |e|^2 / (A1 + A2) at rest (dimensionless).
         bend_rest: (E,) rest dihedral angles [rad] (zero for a flat rest shape).
         vertex_area: (N,) lumped rest area per vertex [m^2].
+        vertex_valence: (N,) number of triangles per vertex.
+        tri_edge_share: (M, 3) triangles sharing the edge opposite each corner.
     """
 
     rest_positions: np.ndarray
@@ -53,6 +55,8 @@ class ClothMesh:
     bend_coef: np.ndarray = field(init=False, repr=False)
     bend_rest: np.ndarray = field(init=False, repr=False)
     vertex_area: np.ndarray = field(init=False, repr=False)
+    vertex_valence: np.ndarray = field(init=False, repr=False)
+    tri_edge_share: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         X = np.ascontiguousarray(np.asarray(self.rest_positions, dtype=np.float64))
@@ -97,6 +101,13 @@ class ClothMesh:
         if np.any(va <= 0):
             raise MeshError(f"{int(np.sum(va <= 0))} vertices belong to no triangle")
         object.__setattr__(self, "vertex_area", va)
+        val = np.bincount(T.ravel(), minlength=X.shape[0]).astype(np.float64)
+        object.__setattr__(self, "vertex_valence", val)
+        # triangles sharing the edge opposite each corner (1 on the boundary, 2 inside)
+        opp = np.stack([T[:, [1, 2]], T[:, [2, 0]], T[:, [0, 1]]], axis=1)  # (M, 3, 2)
+        keys = np.sort(opp.reshape(-1, 2), axis=1)
+        _, inv, cnt = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        object.__setattr__(self, "tri_edge_share", cnt[inv.ravel()].reshape(-1, 3).astype(np.float64))
 
         edges, coefs, rest = _bend_edges(X, T, area)
         if self.flat_rest_bend:

@@ -24,8 +24,10 @@ import numpy as np
 
 from vidsim.cloth.collision import (
     Colliders,
+    build_edge_pairs,
     build_self_pairs,
     collider_forces,
+    edge_collision_forces,
     self_collision_forces,
 )
 from vidsim.cloth.forces import bend_forces, drag_forces, gravity_forces, stretch_shear_forces
@@ -218,6 +220,9 @@ def _model(mesh: ClothMesh, params: ClothParams, wind: np.ndarray) -> tuple:
         mesh.vertex_area,
         np.asarray(params.gravity, dtype=np.float64),
         np.ascontiguousarray(wind, dtype=np.float64),
+        mesh.unique_edges(),
+        mesh.vertex_valence,
+        mesh.tri_edge_share,
     )
 
 
@@ -263,7 +268,7 @@ def compute_forces(
     f = np.zeros_like(x)
     drv = _drv(DrivenVertices.none())
     _accel(float(t), x, v, acc, f, model, P, drv, np.zeros((3, 1, 3)), _col(colliders),
-           -np.ones((1, 2), dtype=np.int64), x.copy())
+           -np.ones((1, 2), dtype=np.int64), np.zeros((0, 2), dtype=np.int64), x.copy())
     return f
 
 
@@ -295,7 +300,11 @@ def energies(
     if self_collision:
         h = params.self_collision_thickness
         pairs = build_self_pairs(x, mesh.triangles, h, _param_vector(mesh, params, True)[P_CELL])
-        es = self_collision_forces(x, mesh.triangles, mesh.vertex_area, pairs, params.self_collision_stiffness, h, f)
+        es = self_collision_forces(x, mesh.triangles, mesh.vertex_area, pairs, params.self_collision_stiffness, h, f,
+                                   mesh.vertex_valence, mesh.tri_edge_share)
+        ue = mesh.unique_edges()
+        epairs = build_edge_pairs(x, ue, h, _param_vector(mesh, params, True)[P_CELL])
+        es += edge_collision_forces(x, ue, mesh.vertex_area, epairs, params.self_collision_stiffness, h, f)
     ek = 0.5 * float(np.sum(mass * np.sum(v * v, axis=1)))
     out = {"kinetic": ek, "stretch": est, "shear": esh, "bend": eb, "gravity": eg, "collision": ec,
            "self_collision": es}
@@ -315,13 +324,13 @@ def stable_step(
     iterations: int = 30,
     v_ref: float = 5.0,
 ) -> tuple[float, dict[str, float]]:
-    """Largest stable step [s] of the symplectic Euler scheme, from the stiffest mode.
+    """Largest stable step [s] of the "fast" scheme (velocity Verlet), from the stiffest mode.
 
     omega_max^2 is the largest eigenvalue of M^-1 K (power iteration on finite
     differences of the elastic forces at ``x``), plus the contact stiffness k/density
     of the colliders (and twice that for self contact); c_max is the largest
     eigenvalue of M^-1 D (damping) plus the drag rates (k_T + 2 k_N v_ref)/density.
-    The step solves omega^2 h^2 + 2 c h = 4 (stability of symplectic Euler for a damped
+    The step solves omega^2 h^2 + 2 c h = 4 (stability of velocity Verlet for a damped
     oscillator), times ``safety``.
 
     Returns:
@@ -410,7 +419,7 @@ def simulate(
         driver: driven/pinned vertices (None: all free). Must cover [t0, times[-1]].
         times: (T,) increasing frame times [s], e.g. ``np.arange(50) / 30``.
         integrator: "rk45" (adaptive Dormand-Prince, reference) or "fast"
-            (symplectic Euler at the stiffest-mode step).
+            (velocity Verlet, symplectic, at the stiffest-mode step).
         x0, v0: (N, 3) initial positions [m] / velocities [m/s] (default: rest, zero).
         t0: time of the initial state [s] (default ``times[0]``).
         colliders: kinematic spheres/capsules (default none).
@@ -459,10 +468,11 @@ def simulate(
         h = params.self_collision_thickness
         P0 = _param_vector(mesh, params, True)
         rest_pairs = build_self_pairs(mesh.rest_positions, mesh.triangles, h, P0[P_CELL])
-        if rest_pairs.shape[0]:
+        rest_epairs = build_edge_pairs(mesh.rest_positions, mesh.unique_edges(), h, P0[P_CELL])
+        if rest_pairs.shape[0] or rest_epairs.shape[0]:
             raise ClothInputError(
                 f"self_collision_thickness {h} m is too large for this mesh: {rest_pairs.shape[0]} "
-                f"vertex-triangle pairs already touch at rest (shortest edge {mesh.min_rest_edge():.4g} m)"
+                f"vertex-triangle and {rest_epairs.shape[0]} edge-edge pairs already touch at rest (shortest edge {mesh.min_rest_edge():.4g} m)"
             )
     model = _model(mesh, params, w)
     P = _param_vector(mesh, params, self_collision)

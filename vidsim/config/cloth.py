@@ -1,12 +1,204 @@
-"""Hydra schema of the ``cloth`` config group (conf/cloth/*.yaml extend it)."""
+"""Hydra schema of the ``cloth`` config group (conf/cloth/*.yaml extend it).
+
+The cloth stages (``vidsim/cli/cloth_*.py``) film a hanging swatch under a striped projector,
+extract silhouettes and angle maps, and fit the nine Baraff-Witkin parameters (seed 4.3-4.5).
+Units are SI unless a name says otherwise (``_px``, ``_deg``, ``_s``).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+
+def _l(*x: float):
+    return field(default_factory=lambda: list(x))
+
+
+@dataclass
+class ClothCameraConfig:
+    """The cloth scene's true camera (reality only; estimators read the calibration).
+
+    Pixels for intrinsics, metres for eye/target/up (world z up, the swatch hangs in y = 0).
+    """
+
+    width: int = 320
+    height: int = 240
+    fx: float = 560.0
+    fy: Optional[float] = None
+    cx: Optional[float] = None
+    cy: Optional[float] = None
+    dist: list[float] = _l(0.0, 0.0, 0.0, 0.0, 0.0)
+    eye: list[float] = _l(0.0, -1.6, 0.82)
+    target: list[float] = _l(0.0, 0.0, 0.82)
+    up: list[float] = _l(0.0, 0.0, 1.0)
+    roll_deg: float = 0.0
+
+
+@dataclass
+class ClothProjectorConfig:
+    """The cloth scene's true projector: a pinhole casting horizontal stripes.
+
+    ``period_px`` is the stripe period in projector pixels (the projected image is known to the
+    estimator, like the seed's slide); ``power`` is the irradiance 1 m away on a bright stripe,
+    ``ambient`` the irradiance everywhere (linear units, 1 = white at full exposure).
+    """
+
+    width: int = 800
+    height: int = 600
+    fx: float = 900.0
+    eye: list[float] = _l(0.25, -1.45, 1.35)
+    target: list[float] = _l(0.0, 0.0, 0.85)
+    up: list[float] = _l(0.0, 0.0, 1.0)
+    period_px: float = 10.0
+    power: float = 1.6
+    ambient: float = 0.15
+
+
+@dataclass
+class ClothCalibrationConfig:
+    """Calibration of the cloth scene from rendered chessboard images (camera + projector)."""
+
+    n_views: int = 10
+    n_projector_views: int = 10
+    noise_sigma: float = 2.0
+    square_size: float = 0.03  # m
+    max_rms_px: float = 0.5
+
+
+@dataclass
+class ClothRealityConfig:
+    """What reality films: fabric x motion, engine, imaging and effects.
+
+    ``kind``: ``mujoco`` (MuJoCo flex, the fabrics of :mod:`vidsim.reality.cloth`) or ``twin``
+    (the estimator's own simulator at ``twin_resolution`` with the known ``twin_params``).
+    ``effects``: ``{effect: {key: value}}`` over :data:`vidsim.reality.cloth.DEFAULT_EFFECTS`
+    (all off by default). ``fabric_effects``: per fabric extra effects merged on top.
+    Imaging effects: ``motion_blur`` sub-samples per exposure (0 off) with ``exposure`` as a
+    fraction of the frame interval, ``lens_k1`` radial distortion unknown to the calibration,
+    ``projector_misalign_deg`` a rotation of the projector after calibration.
+    """
+
+    kind: str = "mujoco"
+    fabric: str = "linen"
+    motion: str = "exp1"
+    n_frames: int = 50
+    fps: float = 30.0
+    resolution: int = 15
+    settle_s: float = 1.0
+    n_background: int = 5
+    albedo: float = 0.85
+    noise_sigma: float = 2.0
+    blur_sigma_px: float = 0.6
+    jpeg_quality: int = 0
+    motion_blur: int = 0
+    exposure: float = 0.5
+    lens_k1: float = 0.0
+    projector_misalign_deg: float = 0.0
+    effects: dict[str, Any] = field(default_factory=dict)
+    twin_resolution: int = 25
+    twin_params: dict[str, float] = field(default_factory=lambda: {
+        "bend": 3e-6, "stretch": 300.0, "shear": 40.0, "bend_damping": 3e-8, "stretch_damping": 3e-3,
+        "shear_damping": 3e-3, "drag_linear": 0.4, "drag_quad": 0.8, "drag_degrade": 0.2, "density": 0.2,
+    })
+    seed: int = 0
+
+
+@dataclass
+class ClothFeaturesConfig:
+    """Silhouettes and angle maps of footage (seed eq. 11).
+
+    ``period_px``: stripe period the G2/H2 bank is tuned to, camera pixels; ``tau``: gradient-mask
+    threshold, rad/px; ``min_strength``/``min_orientedness``: validity of an angle (see
+    :func:`vidsim.video.anglemap.angle_map`); ``k_sigma``/``min_diff``: segmentation thresholds.
+    """
+
+    period_px: float = 6.5
+    tau: float = 0.04
+    min_strength: float = 0.03
+    min_orientedness: float = 0.2
+    k_sigma: float = 5.0
+    min_diff: float = 12.0
+
+
+@dataclass
+class ClothModelConfig:
+    """The estimator's simulator (:mod:`vidsim.cloth`) as used by the objective.
+
+    ``resolution``: vertices per side of the swatch; ``settle_s``: rest time before frame 0
+    (grips still); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
+    """
+
+    resolution: int = 20
+    settle_s: float = 0.5
+    integrator: str = "fast"
+    frame_stride: int = 1
+    max_frames: int = 0
+
+
+def _default_space() -> dict[str, Any]:
+    return {
+        "bend": {"lo": 1e-7, "hi": 1e-4, "log": True},
+        "stretch": {"lo": 20.0, "hi": 4000.0, "log": True},
+        "shear": {"lo": 2.0, "hi": 500.0, "log": True},
+        "bend_damping": {"lo": 1e-9, "hi": 1e-6, "log": True},
+        "stretch_damping": {"lo": 1e-4, "hi": 0.1, "log": True},
+        "shear_damping": {"lo": 1e-4, "hi": 0.1, "log": True},
+        "drag_linear": {"lo": 0.0, "hi": 2.0, "log": False},
+        "drag_quad": {"lo": 0.0, "hi": 3.0, "log": False},
+        "drag_degrade": {"lo": 0.0, "hi": 1.0, "log": False},
+    }
+
+
+@dataclass
+class ClothFitConfig:
+    """Coarse grid + simulated annealing (or CMA-ES) over the estimated parameters.
+
+    ``space``: ``{name: {lo, hi, log}}`` of the estimated parameters (a subset of the nine;
+    the others stay at ``fixed``/their mid-range value). ``grid_params``: the "static"
+    parameters of the coarse grid (``grid_levels`` values each). ``budget``: evaluations after
+    the grid (annealing or CMA-ES). Annealing schedule: ``cooling`` per ``evals_per_T``
+    evaluations, simplex ``step``/``min_step`` in the unit cube, reset at factor 3.
+    """
+
+    space: dict[str, Any] = field(default_factory=_default_space)
+    fixed: dict[str, float] = field(default_factory=dict)
+    grid_params: list[str] = field(default_factory=lambda: ["bend", "stretch", "shear"])
+    grid_levels: int = 4
+    budget: int = 600
+    cooling: float = 0.9
+    evals_per_T: int = 20
+    step: float = 0.15
+    min_step: float = 0.02
+    cma_sigma0: float = 0.2
+    alpha: float = 0.1
+    seed: int = 0
+
+
+@dataclass
+class ClothSkirtConfig:
+    """Skirt generalisation (Figure 9): reality and estimator resolutions, frames."""
+
+    n_frames: int = 40
+    fps: float = 30.0
+    rings: int = 9
+    around: int = 28
+    model_rings: int = 8
+    model_around: int = 24
+    camera_eye: list[float] = _l(0.0, -2.4, 0.85)
+    camera_target: list[float] = _l(0.0, 0.0, 0.8)
 
 
 @dataclass
 class ClothConfig:
-    """Settings of the cloth stages (filled in as the stages are wired)."""
+    """Settings of the cloth stages."""
 
     enabled: bool = True
+    camera: ClothCameraConfig = field(default_factory=ClothCameraConfig)
+    projector: ClothProjectorConfig = field(default_factory=ClothProjectorConfig)
+    calibration: ClothCalibrationConfig = field(default_factory=ClothCalibrationConfig)
+    reality: ClothRealityConfig = field(default_factory=ClothRealityConfig)
+    features: ClothFeaturesConfig = field(default_factory=ClothFeaturesConfig)
+    model: ClothModelConfig = field(default_factory=ClothModelConfig)
+    fit: ClothFitConfig = field(default_factory=ClothFitConfig)
+    skirt: ClothSkirtConfig = field(default_factory=ClothSkirtConfig)

@@ -130,6 +130,13 @@ class CalibrateConfig:
 
 
 @dataclass
+class CheckConfig:
+    """``check_footage`` stage: what a footage folder must provide."""
+
+    required_meta: list[str] = field(default_factory=list)
+
+
+@dataclass
 class PathsConfig:
     """Inputs and outputs of one stage invocation (Snakemake fills these in)."""
 
@@ -155,6 +162,7 @@ class VidsimConfig:
     fluid: FluidConfig = field(default_factory=FluidConfig)
     posterior: PosteriorConfig = field(default_factory=PosteriorConfig)
     gap: GapConfig = field(default_factory=GapConfig)
+    check: CheckConfig = field(default_factory=CheckConfig)
     paths: PathsConfig = field(default_factory=PathsConfig)
     seed: int = 0
 

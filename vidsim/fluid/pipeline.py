@@ -76,7 +76,9 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     field_px = upsample_field(res.field, ds, (H, W))
     solid_px = cv2.resize(spec.solid_mask().astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
     field_px[solid_px] = 0.0
-    out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px)
+    # the edit was optimised against the time-mean flow: match velocity patches on it too
+    out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
+                                match_flow=flow[:, :H, :W].mean(0))
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig}
     figs["rendered_flow_epe_px"] = rendered_flow_epe(out, field_px, border=spec.render.patch)
     figs["edited_speed_mean_px"] = float(np.linalg.norm(field_px, axis=-1).mean())

@@ -173,17 +173,21 @@ class PatchSelector:
     """PATCHSELECT: KD-tree over source velocity-patch features and colour consistency."""
 
     def __init__(self, src: np.ndarray, src_flow: np.ndarray, p: int, k: int, min_life: int,
-                 stride: int = 2, max_patches: int = 60000, color_weight: float = 4.0, seed: int = 0) -> None:
+                 stride: int = 2, max_patches: int = 60000, color_weight: float = 4.0, seed: int = 0,
+                 margin: int = 4, tolerance: float = 0.5) -> None:
         T = src.shape[0]
+        self.tolerance = tolerance
         self.src, self.p, self.k, self.color_weight = src, p, k, color_weight
         last = max(T - 1 - min_life, 0) if T >= 16 else T - 1
         frames = np.arange(0, min(last, src_flow.shape[0] - 1) + 1)
         rng = np.random.default_rng(seed)
+        self.rng = rng
         n_per = max_patches // max(len(frames), 1)
         feats, where = [], []
         for t in frames:
-            f = _block_features(src_flow[t], p)[::stride, ::stride]
-            yy, xx = np.mgrid[0:f.shape[0], 0:f.shape[1]] * stride
+            # candidates keep ``margin`` px from the frame edge (inflow noise, flow artefacts)
+            f = _block_features(src_flow[t], p)[margin:-margin or None:stride, margin:-margin or None:stride]
+            yy, xx = np.mgrid[0:f.shape[0], 0:f.shape[1]] * stride + margin
             f = f.reshape(-1, 18)
             sel = rng.choice(len(f), min(n_per, len(f)), replace=False) if len(f) > n_per else np.arange(len(f))
             feats.append(f[sel])
@@ -192,27 +196,47 @@ class PatchSelector:
         self.where = np.concatenate(where)
         self.tree = cKDTree(self.feats)
 
-    def select(self, feature: np.ndarray, existing: np.ndarray | None, mask: np.ndarray | None) -> tuple[int, float]:
-        """Best source patch index for one output patch; returns (index, data cost per element)."""
+    def select(self, feature: np.ndarray, existing: np.ndarray | None, mask: np.ndarray | None,
+               coherent: list[tuple[int, int, int]] = (), src_flow: np.ndarray | None = None
+               ) -> tuple[tuple[int, int, int], float]:
+        """PATCHSELECT for one output patch.
+
+        Candidates: the K nearest velocity patches of the video, plus "coherent" candidates
+        (the source windows that continue already placed overlapping patches, as in
+        Ashikhmin's coherent synthesis). Cost = data (mean squared velocity-feature distance,
+        px^2/frame^2) + ``color_weight`` * mean squared colour difference over the overlap
+        with the already filled output (neighbourhood consistency).
+
+        Returns:
+            the chosen source ``(t, y, x)`` and its data cost.
+        """
         d, idx = self.tree.query(feature, k=self.k, eps=0.5)
-        d = np.atleast_1d(d)
-        idx = np.atleast_1d(idx)
-        e = d**2 / 18.0
+        cands = [tuple(int(a) for a in self.where[i]) for i in np.atleast_1d(idx)]
+        data = list(np.atleast_1d(d) ** 2 / 18.0)
+        p = self.p
+        T, hs, ws = self.src.shape[:3]
+        for t, y, x in coherent:
+            if 0 <= t < T and 0 <= y <= hs - p and 0 <= x <= ws - p and src_flow is not None:
+                f = _block_features(src_flow[t, y:y + p, x:x + p], p)[0, 0]
+                cands.append((t, y, x))
+                data.append(float(((f - feature) ** 2).sum() / 18.0))
+        e = np.array(data, dtype=np.float64)
         if existing is not None and mask is not None and mask.sum() > 0:
-            p = self.p
-            for n, i in enumerate(idx):
-                t, y, x = self.where[i]
+            for n, (t, y, x) in enumerate(cands):
                 cand = self.src[t, y:y + p, x:x + p]
-                hh, ww = existing.shape[:2]
-                diff = (cand[:hh, :ww] - existing) ** 2
+                diff = (cand - existing) ** 2
                 e[n] += self.color_weight * float((diff.sum(-1) * mask).sum() / (3 * mask.sum()))
-        best = int(np.argmin(e))
-        return int(idx[best]), float(d[best] ** 2 / 18.0)
+        # diversity: draw among candidates within ``tolerance`` of the best cost, so that a
+        # uniform field does not repeat one source patch (texture-by-numbers "pick among good")
+        good = np.flatnonzero(e <= e.min() * (1.0 + self.tolerance) + 1e-12)
+        best = int(self.rng.choice(good))
+        return cands[best], float(data[best])
 
 
 def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: np.ndarray, n_frames: int,
                     rng: np.random.Generator, settings: RenderSettings | None = None,
-                    solid: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+                    solid: np.ndarray | None = None, color_weight: float = 0.1,
+                    match_flow: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Render ``n_frames`` of the edited field by texture transfer from the source video.
 
     Args:
@@ -256,7 +280,17 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     sflow = np.asarray(src_flow, dtype=np.float64)
     if sflow.shape[0] < T:
         sflow = np.concatenate([sflow, sflow[-1:]], 0)  # flow of the last frame: reuse
-    sel = PatchSelector(src, sflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)))
+    if match_flow is None:
+        mflow = sflow
+    else:
+        mflow = np.asarray(match_flow, dtype=np.float64)
+        if mflow.ndim == 3:
+            mflow = np.broadcast_to(mflow, sflow.shape)
+        elif mflow.shape[0] == T - 1:
+            mflow = np.concatenate([mflow, mflow[-1:]], 0)
+        if mflow.shape != sflow.shape:
+            raise RenderInputError(f"match_flow shape {np.shape(match_flow)} does not fit src_flow {src_flow.shape}")
+    sel = PatchSelector(src, mflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)), color_weight=color_weight)
     step = p - o
     grid_y = np.unique(np.r_[np.arange(0, H - p + 1, step), H - p])
     grid_x = np.unique(np.r_[np.arange(0, W - p + 1, step), W - p])
@@ -274,8 +308,9 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         w = wsum[cy:cy + p, cx:cx + p]
         mask = (w > 0.05).astype(np.float64)
         existing = acc[cy:cy + p, cx:cx + p] / np.maximum(w, 1e-9)[..., None]
-        i, c = sel.select(feat, existing, mask)
-        t, y, x = sel.where[i]
+        near = np.flatnonzero((np.abs(P.cx - cx) < p - o) & (np.abs(P.cy - cy) < p - o) & (P.alpha > 0.5))
+        coh = [(int(P.ts[j]), int(round(P.sy[j] + cy - P.cy[j])), int(round(P.sx[j] + cx - P.cx[j]))) for j in near[-4:]]
+        (t, y, x), c = sel.select(feat, existing, mask, coh, mflow)
         P.append(cx, cy, t, x, y, alpha, 1.0 / fade if alpha < 1 else 0.0)
         _splat(src, p, o, P.cx[-1:], P.cy[-1:], P.ts[-1:], P.sx[-1:], P.sy[-1:], P.alpha[-1:], acc, wsum, True)
         spawned += 1
@@ -300,6 +335,12 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             # retire: source clip ending, crowding, outside the frame
             if temporal:
                 P.dalpha[(P.ts >= T - 1 - fade) & (P.dalpha >= 0)] = -1.0 / fade
+            # source window drifting off the source frame: retire (clamped samples would streak)
+            hs, ws = src.shape[1:3]
+            off = (P.sx < 0) | (P.sy < 0) | (P.sx > ws - p) | (P.sy > hs - p)
+            P.dalpha[off & (P.dalpha >= 0)] = -1.0 / fade
+            P.sx = np.clip(P.sx, 0, ws - p)
+            P.sy = np.clip(P.sy, 0, hs - p)
             ccx, ccy = P.cx + p / 2, P.cy + p / 2
             inside = (ccx > -p / 4) & (ccx < W + p / 4) & (ccy > -p / 4) & (ccy < H + p / 4)
             P.keep(inside & ((P.alpha > 0) | (P.dalpha > 0)))

@@ -1,0 +1,145 @@
+"""Bad input, table-driven: every case ends with exit code 2 and ONE line that names the file,
+field or value, no traceback, and no output left behind.
+
+Each case mutates a valid footage folder (or the command line) and runs a real stage process.
+Cases of the stage families (negative stiffness, empty silhouettes, unreachable sinks, ...) are
+added to CASES by the same pattern.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+from typing import Callable
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from vidsim.io.footage import write_footage
+from vidsim.video.camera import PinholeCamera, intrinsics
+
+
+def _valid_footage(folder: Path) -> Path:
+    rng = np.random.default_rng(0)
+    frames = rng.integers(0, 255, (4, 48, 64, 3), dtype=np.uint8)
+    cam = PinholeCamera(intrinsics(60.0, None, 31.5, 23.5), width=64, height=48)
+    write_footage(folder, frames, np.arange(4) / 30.0, {"camera": cam}, {"object": {"mass_kg": 0.2}})
+    return folder
+
+
+def _edit_yaml(path: Path, fn: Callable[[dict], None]) -> None:
+    d = yaml.safe_load(path.read_text())
+    fn(d)
+    path.write_text(yaml.safe_dump(d))
+
+
+def _truncated_video(f: Path, shared: Path | None) -> None:
+    if shared is None:
+        pytest.skip("real data folder absent")
+    for p in (f / "frames").iterdir():
+        p.unlink()
+    (f / "frames").rmdir()
+    (f / "times.csv").unlink()
+    data = (shared / "tracklab_physics" / "verticalToss.webm").read_bytes()
+    (f / "video.webm").write_bytes(data[: len(data) // 2])
+    _edit_yaml(f / "calibration.yaml", lambda d: d["camera"].update(width=640, height=480))
+
+
+def _zero_frames(f, _):
+    for p in (f / "frames").iterdir():
+        p.unlink()
+
+
+def _sizes(f, _):
+    cv2.imwrite(str(f / "frames" / "000002.png"), np.zeros((40, 64, 3), np.uint8))
+
+
+def _backwards(f, _):
+    (f / "times.csv").write_text("time_s\n0.0\n0.05\n0.04\n0.1\n")
+
+
+def _singular_K(f, _):
+    _edit_yaml(f / "calibration.yaml", lambda d: d["camera"].update(K=[[1, 0, 0], [0, 0, 0], [0, 0, 1]]))
+
+
+def _size_mismatch(f, _):
+    _edit_yaml(f / "calibration.yaml", lambda d: d["camera"].update(width=640))
+
+
+def _corrupt_frame(f, _):
+    (f / "frames" / "000001.png").write_bytes(b"not a png at all")
+
+
+def _missing_calibration(f, _):
+    (f / "calibration.yaml").unlink()
+
+
+def _bad_yaml(f, _):
+    (f / "meta.yaml").write_text("object: [unclosed\n")
+
+
+def _nan_in_calibration(f, _):
+    _edit_yaml(f / "calibration.yaml", lambda d: d["camera"].update(t=[0.0, float("nan"), 0.0]))
+
+
+def _nothing(f, _):
+    return None
+
+
+# (id, mutate footage, extra overrides, text the one-line error must contain)
+CASES = [
+    ("truncated video", _truncated_video, [], "video.webm: video is truncated"),
+    ("zero frames", _zero_frames, [], "zero frames"),
+    ("frames of different sizes", _sizes, [], "000002.png: frame size 64x40 differs"),
+    ("timestamps going backwards", _backwards, [], "times.csv: timestamps must increase"),
+    ("singular camera matrix", _singular_K, [], "field 'K' is singular"),
+    ("calibration vs frame size", _size_mismatch, [], "640x48 does not match the frames (64x48)"),
+    ("corrupt frame", _corrupt_frame, [], "000001.png: not a readable image"),
+    ("missing calibration file", _missing_calibration, [], "calibration.yaml: file is missing"),
+    ("malformed YAML", _bad_yaml, [], "meta.yaml: not valid YAML"),
+    ("NaN in calibration", _nan_in_calibration, [], "field 't' contains NaN"),
+    ("missing meta.yaml field", _nothing, ["check.required_meta=[inertia]"], "meta.yaml: missing field(s) ['inertia']"),
+    ("unknown config key", _nothing, ["camera.focal=3"], "camera.focal"),
+    ("NaN config value", _nothing, ["camera.fx=nan"], "camera.fx = nan"),
+    ("negative config value", _nothing, ["render.noise_sigma=-1"], "render.noise_sigma = -1"),
+    ("path escaping results", _nothing, ["paths.out=../../outside"], "escapes the results folder"),
+    ("missing footage folder", None, [], "footage folder is missing"),
+]
+
+
+@pytest.mark.parametrize("name,mutate,overrides,expected", CASES, ids=[c[0] for c in CASES])
+def test_bad_input_gives_one_clear_line(tmp_path, name, mutate, overrides, expected):
+    from vidsim.io.paths import shared_data_dir
+
+    shared = shared_data_dir() if shared_data_dir().is_dir() else None
+    folder = tmp_path / "footage"
+    if mutate is not None:
+        _valid_footage(folder)
+        mutate(folder, shared)
+    results = tmp_path / "results"
+    out = results / "check"
+    r = subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.check_footage", f"paths.footage={folder}", f"paths.results={results}",
+         f"paths.out={out}", *overrides],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode != 0, f"{name}: accepted"
+    assert "Traceback" not in r.stderr, r.stderr
+    assert expected in r.stderr, r.stderr
+    assert not out.exists() and not (tmp_path / "outside").exists(), "partial outputs left behind"
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip() and "OpenGL_accelerate" not in ln]
+    assert len(lines) == 1, r.stderr
+
+
+def test_valid_footage_passes(tmp_path):
+    folder = _valid_footage(tmp_path / "footage")
+    out = tmp_path / "results" / "check"
+    r = subprocess.run([sys.executable, "-m", "vidsim.cli.check_footage", f"paths.footage={folder}",
+                        f"paths.results={tmp_path / 'results'}", f"paths.out={out}"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    s = yaml.safe_load((out / "summary.yaml").read_text())
+    assert s["n_frames"] == 4 and s["size_px"] == [64, 48]
+    assert abs(s["frame_interval_s"]["median"] - 1 / 30) < 1e-9

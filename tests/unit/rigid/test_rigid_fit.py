@@ -1,0 +1,67 @@
+"""Recovery of thrown-T parameters from silhouettes of an independent engine (MuJoCo), known truth."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vidsim.reality.rigid import RigidRealityConfig, make_throw
+from vidsim.rigid.body import BoxBody, RigidBodyError
+from vidsim.rigid.evaluate import perturbed_guess, score
+from vidsim.rigid.fit import FitConfig, Stage, fit_throw, icosahedral_group
+
+# half resolution at most: the CI version of the benchmark table
+SMALL = {
+    "screen": [Stage(0.25, 10, 20, 1.0), Stage(0.25, 20, 25, 1.0)],
+    "screen_keep": [6, 2],
+    "refine": [Stage(0.25, None, 30, 1.0), Stage(0.5, None, 30, 0.3)],
+    "final": [Stage(0.5, None, 30, 0.0)],
+}
+
+
+def _throw(seed):
+    th = make_throw(seed, RigidRealityConfig(n_background=3), render=False)
+    return th, BoxBody.from_meta(th.meta["object"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [11, 12])
+def test_recovery_from_30_degree_guess(seed):
+    th, body = _throw(seed)
+    guess = perturbed_guess(th.truth, np.random.default_rng(seed), orient_deg=30.0)
+    res = fit_throw(th.masks, th.times, th.camera, body, guess, {**SMALL, "multistart": "none"})
+    s = score(res, th.truth, body)
+    assert s["success"], s
+    assert res.history[0] > 3 * res.history[-1]  # the descent did the work
+
+
+@pytest.mark.slow
+def test_recovery_from_90_degree_guess_needs_the_multistart():
+    th, body = _throw(13)
+    guess = perturbed_guess(th.truth, np.random.default_rng(13), orient_deg=90.0)
+    res = fit_throw(th.masks, th.times, th.camera, body, guess, {**SMALL, "multistart": "icosahedral"})
+    s = score(res, th.truth, body)
+    assert s["success"], s
+    assert res.n_starts == 30  # 60 group elements modulo the T's half-turn symmetry
+
+
+def test_icosahedral_group_is_a_group():
+    G = icosahedral_group()
+    assert G.shape == (60, 3, 3)
+    assert np.allclose(G[0], np.eye(3))
+    prod = G[7] @ G[23]
+    assert min(np.abs(prod - g).max() for g in G) < 1e-9
+
+
+def test_bad_inputs_are_named():
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(0))
+    with pytest.raises(RigidBodyError, match="masks"):
+        fit_throw(th.masks[:, :100], th.times, th.camera, body, guess)
+    with pytest.raises(RigidBodyError, match="quaternion"):
+        fit_throw(th.masks, th.times, th.camera, body, {**guess, "quaternion": [0, 0, 0]})
+    with pytest.raises(RigidBodyError, match="unknown field 'itermax'"):
+        FitConfig.from_dict({"itermax": 3})
+    empty = np.zeros_like(th.masks)
+    with pytest.raises(RigidBodyError, match="visible"):
+        fit_throw(empty, th.times, th.camera, body, guess)
