@@ -15,7 +15,7 @@ SMALL = {
     "screen": [Stage(0.25, 10, 20, 1.0), Stage(0.25, 20, 25, 1.0)],
     "screen_keep": [6, 2],
     "refine": [Stage(0.25, None, 30, 1.0), Stage(0.5, None, 30, 0.3)],
-    "final": [Stage(0.5, None, 30, 0.0)],
+    "final": [Stage(0.5, None, 60, 0.0)],
 }
 
 
