@@ -89,9 +89,9 @@ class FitConfig:
         Stage(0.25, 10, 20, 1.0, 1.0), Stage(0.25, 20, 25, 1.0, 1.0)])
     screen_keep: list[int] = field(default_factory=lambda: [8, 3])
     refine: list[Stage] = field(default_factory=lambda: [
-        Stage(0.25, None, 30, 1.0, 1.0), Stage(0.5, None, 30, 0.3, 1.0)])
-    final: list[Stage] = field(default_factory=lambda: [Stage(1.0, None, 20, 0.0, 1.0)])
-    final_ratio: float = 2.0
+        Stage(0.25, None, 30, 1.0, 1.0), Stage(0.5, None, 40, 0.3, 1.0)])
+    final: list[Stage] = field(default_factory=lambda: [Stage(1.0, None, 60, 0.0, 1.0)])
+    final_ratio: float = 1.3
     multistart: str = "icosahedral"
     hmax: float = 1.0 / 60.0
     distinct_deg: float = 10.0
