@@ -143,3 +143,81 @@ def fit_flight(times: np.ndarray, centres: np.ndarray, frames: np.ndarray) -> Fl
     g = coef[2]
     return FlightFit(idx, coef, float(np.degrees(np.arctan2(g[0], g[1]))), float(np.linalg.norm(g) / G_EARTH),
                      float(np.sqrt((res ** 2).sum(1).mean())), res)
+
+
+@dataclass
+class PerspectiveFlightFit:
+    """Full-perspective free flight of a ball seen by a camera with unknown focal length.
+
+    Attributes:
+        frames: (n,) frame indices used.
+        position: (3,) ball centre at the first frame, camera frame, metres.
+        velocity: (3,) m/s; gravity: (3,) m/s^2 in the camera frame (|g| = 9.81 fixed: the scale).
+        focal: focal length, pixels (principal point at the image centre).
+        radius: ball radius, metres (from the blob area).
+        rms_px: RMS residual of the centroids, pixels; residuals: (n, 2).
+    """
+
+    frames: np.ndarray
+    position: np.ndarray
+    velocity: np.ndarray
+    gravity: np.ndarray
+    focal: float
+    radius: float
+    rms_px: float
+    residuals: np.ndarray
+
+    def summary(self) -> dict:
+        """Plain dictionary."""
+        return {"frames": self.frames.tolist(), "position_m": self.position.tolist(),
+                "velocity_m_s": self.velocity.tolist(), "gravity_cam": self.gravity.tolist(),
+                "focal_px": self.focal, "radius_m": self.radius, "rms_px": self.rms_px}
+
+
+def fit_flight_perspective(times: np.ndarray, centres: np.ndarray, areas: np.ndarray, frames: np.ndarray,
+                           image_size: tuple[int, int], focal_guess: float = 600.0) -> PerspectiveFlightFit:
+    """Fit ``X(t) = X0 + V0 t + g t^2 / 2`` (|g| = 9.81 m/s^2) projected by a pinhole of unknown focal.
+
+    Observations: blob centroids (pixels) and apparent radii ``sqrt(area / pi)`` (pixels, weight
+    0.5: blob areas are coarse). Starts from the weak-perspective fit.
+
+    Args:
+        times: (T,) seconds; centres: (T, 2) pixels; areas: (T,) pixels; frames: indices to use.
+        image_size: (width, height) pixels.
+        focal_guess: initial focal length, pixels.
+    """
+    from scipy.optimize import least_squares
+
+    idx = np.asarray(frames, int)
+    weak = fit_flight(times, centres, idx)
+    t = np.asarray(times, float)[idx]
+    t = t - t[0]
+    uv = np.asarray(centres, float)[idx]
+    rad = np.sqrt(np.asarray(areas, float)[idx] / np.pi)
+    if np.any(rad <= 0):
+        raise BallisticError("areas of the flight frames must be positive")
+    cx, cy = (image_size[0] - 1) / 2.0, (image_size[1] - 1) / 2.0
+    ppm = weak.pixels_per_metre
+    Z0 = focal_guess / ppm
+    g_img = weak.coef[2] / np.linalg.norm(weak.coef[2])
+    x0 = np.r_[(weak.coef[0] - [cx, cy]) / ppm, Z0, weak.coef[1] / ppm, 0.0,
+               np.arctan2(g_img[0], g_img[1]), 0.0, np.log(focal_guess), np.log(rad.mean() * Z0 / focal_guess)]
+
+    def unpack(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, float]:
+        a, b = x[6], x[7]  # in-plane angle and out-of-plane angle of gravity
+        g = G_EARTH * np.array([np.sin(a) * np.cos(b), np.cos(a) * np.cos(b), np.sin(b)])
+        return x[0:3], x[3:6], g, float(np.exp(x[8])), float(np.exp(x[9]))
+
+    def resid(x: np.ndarray) -> np.ndarray:
+        X0, V0, g, f, R = unpack(x)
+        P = X0 + np.outer(t, V0) + 0.5 * np.outer(t * t, g)
+        z = np.maximum(P[:, 2], 1e-3)
+        pu = f * P[:, 0] / z + cx
+        pv = f * P[:, 1] / z + cy
+        return np.concatenate([pu - uv[:, 0], pv - uv[:, 1], 0.5 * (f * R / z - rad)])
+
+    sol = least_squares(resid, x0, method="lm", max_nfev=2000)
+    X0, V0, g, f, R = unpack(sol.x)
+    r = resid(sol.x)
+    res2 = np.stack([r[: len(t)], r[len(t): 2 * len(t)]], 1)
+    return PerspectiveFlightFit(idx, X0, V0, g, f, R, float(np.sqrt((res2 ** 2).sum(1).mean())), res2)

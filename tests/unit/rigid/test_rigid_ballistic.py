@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vidsim.rigid.ballistic import BallisticError, fit_flight, split_flights, track_blob
+from vidsim.rigid.ballistic import BallisticError, fit_flight, fit_flight_perspective, split_flights, track_blob
 from vidsim.video.segment import SegmentConfig, segment
 
 BALL_SEG = SegmentConfig(min_area=4, open_px=0, close_px=1, mixed_fraction=0.0, clutter_fraction=0.1,
@@ -35,7 +35,7 @@ def test_real_vertical_toss(shared_data):
 
     frames, times = read_video(shared_data / "tracklab_physics" / "verticalToss.webm")
     masks = segment(frames, cfg=BALL_SEG)
-    centres, _ = track_blob(masks)
+    centres, areas = track_blob(masks)
     flights = split_flights(times, centres)
     assert len(flights) >= 2  # the toss and the bounces that follow
     # in view: from the first to the last frame of the free flights found
@@ -48,3 +48,11 @@ def test_real_vertical_toss(shared_data):
     # gravity points down the image (within 15 degrees: the webcam is roughly level)
     assert abs(fit_ts.gravity_angle_deg) < 15 and abs(fit_30.gravity_angle_deg) < 15
     assert fit_ts.rms_px < 15 and fit_30.rms_px < 15
+    # full perspective with unknown focal length: the ball approaches the camera during a flight
+    t30 = np.arange(len(times)) / 30.0
+    fits = [fit_flight_perspective(tt, centres, areas, fl, (640, 480)) for fl in flights[:2] for tt in (times, t30)]
+    for f in fits:
+        assert f.rms_px < 0.4 * fit_ts.rms_px and f.rms_px < 3.0
+        assert 400 < f.focal < 800  # a webcam lens; consistent between flights
+        assert f.gravity[1] > 0.95 * 9.81 * 0.98  # mostly down the image
+    assert abs(fits[0].focal - fits[2].focal) < 0.15 * fits[0].focal
