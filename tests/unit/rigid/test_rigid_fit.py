@@ -65,3 +65,19 @@ def test_bad_inputs_are_named():
     empty = np.zeros_like(th.masks)
     with pytest.raises(RigidBodyError, match="visible"):
         fit_throw(empty, th.times, th.camera, body, guess)
+
+
+def test_stage_driver_reads_body_and_guess_from_meta():
+    from vidsim.rigid.stage import estimate_throw
+
+    th, body = _throw(14)
+    guess = perturbed_guess(th.truth, np.random.default_rng(14), orient_deg=10.0, omega_rel=0.05, vel_rel=0.05,
+                            pos_m=0.02, grav_deg=2.0)
+    meta = {**th.meta, "initial_guess": guess}
+    cfg = {**SMALL, "multistart": "none", "refine": [Stage(0.5, None, 20, 0.3)], "final": []}
+    est = estimate_throw(None, th.times, th.camera, meta, fit_cfg=cfg, masks=th.masks)
+    assert est.fit.mean_iou > 0.9
+    with pytest.raises(RigidBodyError, match="object"):
+        estimate_throw(None, th.times, th.camera, {}, masks=th.masks)
+    with pytest.raises(RigidBodyError, match="initial guess"):
+        estimate_throw(None, th.times, th.camera, th.meta, masks=th.masks)
