@@ -157,6 +157,7 @@ class FitResult:
             ``tie_iou``): the footage does not decide between them (seed Figure 2, row c).
         seconds: wall time of the whole estimation.
         n_starts: number of starts screened.
+        distinct: indices into ``alternatives`` of the distinct, equally good solutions.
     """
 
     params: np.ndarray
@@ -172,6 +173,7 @@ class FitResult:
     ambiguous: bool
     seconds: float
     n_starts: int
+    distinct: list[int] = field(default_factory=list)
 
     def summary(self) -> dict:
         """Plain dictionary (YAML friendly) of the estimate."""
@@ -186,6 +188,7 @@ class FitResult:
             "mean_iou": float(self.mean_iou),
             "iou": self.iou.tolist(),
             "ambiguous": bool(self.ambiguous),
+            "distinct_alternatives": list(self.distinct),
             "alternatives": [
                 {"quaternion": c.q_base.tolist(), "mean_iou": c.mean_iou, "cost": c.cost,
                  "omega_world": c.params[9:12].tolist()} for c in self.alternatives],
@@ -333,6 +336,29 @@ def start_orientations(R_guess: np.ndarray, symmetries: np.ndarray, mode: str = 
     return np.stack(out)
 
 
+def distinct_alternatives(best: Candidate, alts: list[Candidate], body: BoxBody, times: np.ndarray, t0: float,
+                          tie_iou: float = 0.01, distinct_deg: float = 10.0, hmax: float = 1.0 / 60.0) -> list[int]:
+    """Indices of ``alts`` that explain the silhouettes as well as ``best`` but move differently.
+
+    A candidate ties when its mean IoU is within ``tie_iou`` of the best, and is distinct when its
+    orientation differs from the best's by more than ``distinct_deg`` (modulo the body's
+    symmetries) at some frame time. Such a pair is the seed's "two solutions" (Figure 2, row c).
+    """
+    tr_best = simulate(best.params, best.q_base, body.inertia, times, t0, hmax, sensitivities=False)
+    out = []
+    for i, c in enumerate(alts):
+        if best.mean_iou - c.mean_iou > tie_iou:
+            continue
+        tr_c = simulate(c.params, c.q_base, body.inertia, times, t0, hmax, sensitivities=False)
+        if not (tr_c.ok and tr_best.ok):
+            continue
+        d = max(orientation_error_deg(quat_to_rot(a[3:7]), quat_to_rot(b[3:7]), body.symmetries)
+                for a, b in zip(tr_best.states, tr_c.states))
+        if d > distinct_deg:
+            out.append(i)
+    return out
+
+
 # ----------------------------------------------------------------------------- driver
 def _parse_guess(guess: dict) -> tuple[np.ndarray, np.ndarray, float | None]:
     missing = [k for k in ("position", "quaternion", "velocity", "omega_world") if k not in guess]
@@ -444,17 +470,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     cands.sort(key=lambda c: (-c.mean_iou, c.cost))
     best = cands[0]
     alts = cands[1:]
-    ambiguous = False
     tr_best = simulate(best.params, best.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False)
-    for c in alts:
-        if best.mean_iou - c.mean_iou > cfg.tie_iou:
-            continue
-        tr_c = simulate(c.params, c.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False)
-        if not tr_c.ok:
-            continue
-        d = max(orientation_error_deg(quat_to_rot(a[3:7]), quat_to_rot(b[3:7]), body.symmetries)
-                for a, b in zip(tr_best.states, tr_c.states))
-        if d > cfg.distinct_deg:
-            ambiguous = True
+    distinct = distinct_alternatives(best, alts, body, ft, t0, cfg.tie_iou, cfg.distinct_deg, cfg.hmax)
     return FitResult(best.params, best.q_base, t0, ft, frames, tr_best.states, best.iou, best.mean_iou,
-                     best.history, alts, ambiguous, time.perf_counter() - t_start, len(starts))
+                     best.history, alts, bool(distinct), time.perf_counter() - t_start, len(starts), distinct)

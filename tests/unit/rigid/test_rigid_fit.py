@@ -81,3 +81,18 @@ def test_stage_driver_reads_body_and_guess_from_meta():
         estimate_throw(None, th.times, th.camera, {}, masks=th.masks)
     with pytest.raises(RigidBodyError, match="initial guess"):
         estimate_throw(None, th.times, th.camera, th.meta, masks=th.masks)
+
+
+def test_two_solution_report_ignores_symmetry_and_flags_distinct_ties():
+    from vidsim.rigid.dynamics import quat_exp, quat_mul
+    from vidsim.rigid.fit import Candidate, distinct_alternatives, rot_to_quat
+
+    _, body = _throw(11)
+    p = np.r_[0.0, 0.5, 3.0, 0, 0, 0, 0.3, -5.0, 0.1, 0.0, 0.0, 0.0, 0.0, 0.0]  # not spinning
+    q = quat_exp(np.array([0.2, 0.4, -0.1]))
+    times = np.linspace(0, 1, 10)
+    best = Candidate(p, q, 1.0, 0.98, np.ones(10), [], 0)
+    same = Candidate(p, quat_mul(q, rot_to_quat(body.symmetries[1])), 1.0, 0.98, np.ones(10), [], 1)
+    other = Candidate(p, quat_mul(q, quat_exp(np.array([0.0, 0.0, 0.5]))), 1.0, 0.975, np.ones(10), [], 2)
+    worse = Candidate(p, quat_mul(q, quat_exp(np.array([0.0, 0.0, 0.5]))), 1.0, 0.90, np.ones(10), [], 3)
+    assert distinct_alternatives(best, [same, other, worse], body, times, 0.0) == [1]
