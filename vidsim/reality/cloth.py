@@ -25,7 +25,8 @@ Physics (MuJoCo >= 4.0 ``flexcomp``, ``dim=2``)
       has no anisotropic or strain-stiffening membrane. Those effects are therefore added by this
       module as explicit per-edge springs on the grid's warp (vertical) and weft (horizontal)
       edges, ``f = -k (eps + c3 eps^3)``, with the time step reduced to keep them stable.
-      Bending plasticity (``yield``) is available in MuJoCo but not used here.
+      Bending plasticity (MuJoCo's ``yield``) is native and exposed as the
+      ``bending_plasticity`` effect (bending hysteresis).
     * The gripped corners are kinematic: before every step their slide joints are set to the
       prescribed position and velocity (a rigid grip). Their bodies are made heavy (1 kg,
       gravity-compensated): the discrete integrator solves all flex dofs implicitly inside a
@@ -196,7 +197,9 @@ def corner_paths(motion: dict[str, Any], times: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------------------- effects
 #: Effects, each off by default. Units: wind m/s, gust fraction of the steady wind and Hz,
-#: extra warp/weft stiffness N/m, strain-stiffening c3 [-], grip drop m and lag s, tilt degrees.
+#: extra warp/weft stiffness N/m, strain-stiffening c3 [-], grip drop m and lag s, tilt degrees,
+#: bending plasticity: MuJoCo's native bending yield (outer-fibre strain ``t/2 |dkappa|``, [-]),
+#: a bending hysteresis: folds beyond the yield stay partly set.
 DEFAULT_EFFECTS: dict[str, dict[str, Any]] = {
     "air_drag": {"on": False, "density": 1.2},
     "wind": {"on": False, "velocity": [0.0, 1.0, 0.0], "gust": 0.0, "gust_frequency": 1.5},
@@ -204,6 +207,7 @@ DEFAULT_EFFECTS: dict[str, dict[str, Any]] = {
     "strain_stiffening": {"on": False, "c3": 0.0, "stiffness": 0.0},
     "grip_slip": {"on": False, "drop": 0.01, "lag": 0.03, "jitter": 0.0},
     "gravity_tilt": {"on": False, "degrees": 3.0, "azimuth_deg": 90.0},
+    "bending_plasticity": {"on": False, "yield_strain": 2.0e-4},
 }
 
 
@@ -348,7 +352,18 @@ def _slip_paths(measured_fn, eff: dict[str, Any], t: np.ndarray, rng: np.random.
 
 
 # --------------------------------------------------------------------------------------- swatch
-def _swatch_xml(f: dict[str, float], n: int, size: float, top: np.ndarray, dt: float, gravity: np.ndarray) -> str:
+def _yield_attr(eff: dict[str, Any]) -> str:
+    bp = eff["bending_plasticity"]
+    if not bp["on"]:
+        return ""
+    y = float(bp["yield_strain"])
+    if not (np.isfinite(y) and y > 0):
+        raise ClothRealityError(f"effects['bending_plasticity']['yield_strain'] must be > 0, got {bp['yield_strain']!r}")
+    return f' yield="0 {y}"'
+
+
+def _swatch_xml(f: dict[str, float], n: int, size: float, top: np.ndarray, dt: float, gravity: np.ndarray,
+                yield_attr: str = "") -> str:
     young, thick = _shell_parameters(f)
     sp = size / (n - 1)
     mass = f["areal_density"] * size * size
@@ -364,7 +379,7 @@ def _swatch_xml(f: dict[str, float], n: int, size: float, top: np.ndarray, dt: f
       <contact contype="0" conaffinity="0" selfcollide="none"/>
       <edge equality="false"/>
       <elasticity young="{young}" poisson="{f['poisson']}" thickness="{thick}"
-                  damping="{f['damping']}" elastic2d="both"/>
+                  damping="{f['damping']}" elastic2d="both"{yield_attr}/>
     </flexcomp>
   </worldbody>
 </mujoco>"""
@@ -427,6 +442,14 @@ def _edge_forces(x: np.ndarray, edges: np.ndarray, rest: np.ndarray, k_lin: floa
     np.add.at(out, edges[:, 0], fv)
     np.add.at(out, edges[:, 1], -fv)
     return out
+
+
+def _mujoco_unstable(d: mujoco.MjData) -> str | None:
+    """MuJoCo resets the state silently-ish when accelerations blow up: treat that as divergence."""
+    for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADQPOS):
+        if d.warning[w].number > 0:
+            return f"MuJoCo reported {w.name} (unstable simulation, state was reset)"
+    return None
 
 
 def _diverged(x: np.ndarray, ref: np.ndarray, scale: float) -> str | None:
@@ -514,7 +537,7 @@ def simulate_swatch(
     dt_used = (1.0 / fps) / substeps
     n_settle = int(round(settle / dt_used))
 
-    xml = _swatch_xml(f, resolution, size, top, dt_used, gravity)
+    xml = _swatch_xml(f, resolution, size, top, dt_used, gravity, _yield_attr(eff))
     m = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
@@ -635,7 +658,7 @@ def _drive(
         mujoco.mj_flex(m, d)
         out[frame] = d.flexvert_xpos
         grips[frame] = pc
-        reason = _diverged(out[frame], pc.mean(axis=0), scale)
+        reason = _diverged(out[frame], pc.mean(axis=0), scale) or _mujoco_unstable(d)
         if reason:
             failure = f"{reason} at t = {t:.3f} s (frame {frame})"
             break
@@ -846,7 +869,7 @@ def simulate_skirt(
                solref="0.004 1" margin="0.002"/>
       <edge equality="false"/>
       <elasticity young="{young}" poisson="{f['poisson']}" thickness="{thick}"
-                  damping="{f['damping']}" elastic2d="both"/>
+                  damping="{f['damping']}" elastic2d="both"{_yield_attr(eff)}/>
     </flexcomp>
   </worldbody>
 </mujoco>"""

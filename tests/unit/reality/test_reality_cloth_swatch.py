@@ -119,6 +119,7 @@ def test_air_drag_damps_the_swing():
         {"strain_stiffening": {"on": True, "c3": 300.0}},
         {"grip_slip": {"on": True, "drop": 0.01, "lag": 0.03}},
         {"gravity_tilt": {"on": True, "degrees": 5.0}},
+        {"bending_plasticity": {"on": True, "yield_strain": 2e-4}},
     ],
 )
 def test_effects_switch_on_and_change_the_motion(effects):
@@ -171,3 +172,13 @@ def test_bad_inputs_raise_clear_errors():
     mot["width"] = 0.5
     with pytest.raises(ClothRealityError, match="width"):
         simulate_swatch(fabric_profile("linen"), mot, {}, np.random.default_rng(0), n_frames=2, settle=0.0)
+
+
+def test_divergence_returns_a_failure_not_an_exception():
+    """A hurricane (300 m/s wind) blows the explicit air forces up: a flagged run, no NaN, no raise."""
+    run = simulate_swatch(fabric_profile("satin"), swatch_motion("exp1"),
+                          {"wind": {"on": True, "velocity": [0.0, 300.0, 0.0]}}, np.random.default_rng(0),
+                          resolution=9, n_frames=20, settle=0.3)
+    assert not run.ok and run.failure
+    assert len(run.vertices) < 20 and np.isfinite(run.vertices).all()
+    assert len(run.times) == len(run.vertices) == len(run.corner_paths_measured)
