@@ -199,7 +199,8 @@ def corner_paths(motion: dict[str, Any], times: np.ndarray) -> np.ndarray:
 #: Effects, each off by default. Units: wind m/s, gust fraction of the steady wind and Hz,
 #: extra warp/weft stiffness N/m, strain-stiffening c3 [-], grip drop m and lag s, tilt degrees,
 #: bending plasticity: MuJoCo's native bending yield (outer-fibre strain ``t/2 |dkappa|``, [-]),
-#: a bending hysteresis: folds beyond the yield stay partly set.
+#: a bending hysteresis: folds beyond the yield stay partly set; mocap noise: Gaussian error (m,
+#: per axis) of the *measured* corner paths only (the cloth follows the true path).
 DEFAULT_EFFECTS: dict[str, dict[str, Any]] = {
     "air_drag": {"on": False, "density": 1.2},
     "wind": {"on": False, "velocity": [0.0, 1.0, 0.0], "gust": 0.0, "gust_frequency": 1.5},
@@ -208,6 +209,7 @@ DEFAULT_EFFECTS: dict[str, dict[str, Any]] = {
     "grip_slip": {"on": False, "drop": 0.01, "lag": 0.03, "jitter": 0.0},
     "gravity_tilt": {"on": False, "degrees": 3.0, "azimuth_deg": 90.0},
     "bending_plasticity": {"on": False, "yield_strain": 2.0e-4},
+    "mocap_noise": {"on": False, "sigma": 5.0e-4},
 }
 
 
@@ -249,8 +251,10 @@ class ClothRealityRun:
             effects, true corner paths, wall time, ...).
         ok: False when the simulation diverged; ``failure`` then says why.
         failure: None or a message.
-        colliders: for the skirt, ``{"capsules": (T, K, 2, 3) endpoints, "radii": (K,)}`` of
-            the kinematic body (known input, like motion capture); empty for the swatch.
+        colliders: for the skirt, the kinematic body (known input, like motion capture):
+            ``{"capsules": (T, K, 2, 3) leg endpoints, "radii": (K,), "waist_pos": (T, 3),
+            "waist_rot": (T, 3, 3), "waist_ring": (T, A, 3) waistband vertex positions}``;
+            empty for the swatch.
     """
 
     vertices: np.ndarray
@@ -507,6 +511,7 @@ def simulate_swatch(
 
     times = np.arange(n_frames) / fps
     measured = corner_paths(mot, times)
+    mocap_noise = rng.normal(0.0, 1.0, measured.shape)
 
     def true_path(t: np.ndarray) -> np.ndarray:
         if eff["grip_slip"]["on"]:
@@ -585,6 +590,12 @@ def simulate_swatch(
         n_settle, n_frames, fps, substeps, dt_used, size,
     )
     n_done = len(out)
+    if eff["grip_slip"]["on"] or eff["mocap_noise"]["on"]:
+        # what motion capture reports: the commanded path (slip) plus sensor noise
+        sigma = float(eff["mocap_noise"]["sigma"]) if eff["mocap_noise"]["on"] else 0.0
+        if not (np.isfinite(sigma) and sigma >= 0):
+            raise ClothRealityError(f"effects['mocap_noise']['sigma'] must be >= 0 m, got {sigma!r}")
+        measured = measured + sigma * mocap_noise
     young, thick = _shell_parameters(f)
     truth = {
         "engine": f"mujoco {mujoco.__version__} flexcomp dim=2, integrator=discrete",
@@ -946,6 +957,7 @@ def simulate_skirt(
         vertices=out, faces=faces, times=times[:n_done], corner_paths_measured=np.zeros((n_done, 0, 3)),
         truth=truth, ok=failure is None, failure=failure,
         colliders={"capsules": body["legs"], "radii": np.full(2, rad),
+                   "waist_ring": body["waist_pos"][:, None, :] + np.einsum("tij,nj->tni", body["waist_rot"], pts_local[top]),
                    "waist_pos": body["waist_pos"], "waist_rot": body["waist_rot"]},
     )
 

@@ -31,6 +31,7 @@ def test_skirt_stays_on_the_waist_and_clear_of_the_legs(skirts):
     # the waistband rides the waist: its ring centre is the waist position, every frame
     np.testing.assert_allclose(run.vertices[:, top].mean(axis=1), body["waist_pos"], atol=1e-9)
     np.testing.assert_allclose(run.colliders["capsules"], body["legs"])
+    np.testing.assert_allclose(run.colliders["waist_ring"], run.vertices[:, top], atol=1e-9)
     # the hem hangs below the waist and the legs push the cloth instead of passing through it
     hem = np.arange(7 * 24, 8 * 24)
     assert (run.vertices[:, hem, 2] < body["waist_pos"][:, None, 2] - 0.3).all()
