@@ -34,6 +34,10 @@ def main(runs: int = 50) -> None:
     print(f"320x240, ksize={bank.ksize}, tuned period {bank.tuned_period_px:.1f} px, {runs} runs, 1 thread")
     print(f"  basis responses (7 separable filters): {_median_ms(lambda: bank.responses(img), runs)}")
     print(f"  coefficients C1..C3:                   {_median_ms(lambda: energy_coefficients(resp), runs)}")
+    c = energy_coefficients(resp)
+    sig = 0.5 * bank.tuned_period_px
+    blur = lambda: [cv2.GaussianBlur(x, (0, 0), sig, borderType=cv2.BORDER_REFLECT) for x in c]  # noqa: E731
+    print(f"  3 Gaussian blurs (sigma {sig:.1f} px):     {_median_ms(blur, runs)}")
     print(f"  full angle_map + mask(tau):            {_median_ms(lambda: angle_map(img, bank).mask(0.03), runs)}")
 
 

@@ -207,6 +207,31 @@ def _coefficients_kernel(ga, gb, gc, ha, hb, hc, hd, c1, c2, c3):  # pragma: no 
             c3[i, j] = -a * b - b * c - 0.9375 * (r * s + p * q) - 1.6875 * q * r - 0.1875 * p * s
 
 
+@njit(cache=True)
+def _orientation_kernel(c1, c2, c3, strength, region, s_min, o_min, theta, orient, valid, grad):  # pragma: no cover
+    """Fused: orientedness, validity, theta = atan2(-C3, -C2)/2 (NaN if invalid) and the
+    pi-periodic gradient magnitude from the double angle (same maths as ``angle_gradient``)."""
+    n0, n1 = c1.shape
+    for i in range(n0):
+        for j in range(n1):
+            s = strength[i, j]
+            o = s / max(c1[i, j], 1e-12)
+            orient[i, j] = o
+            ok = region[i, j] and s >= s_min and o >= o_min
+            valid[i, j] = ok
+            theta[i, j] = 0.5 * np.arctan2(-c3[i, j], -c2[i, j]) if ok else np.nan
+    for i in range(1, n0 - 1):
+        for j in range(1, n1 - 1):
+            if not (valid[i, j] and valid[i, j - 1] and valid[i, j + 1] and valid[i - 1, j] and valid[i + 1, j]):
+                continue
+            # unit double-angle vector z = -(C2, C3) / strength; |grad theta| = |grad z| / 2
+            ax = -c2[i, j + 1] / strength[i, j + 1] + c2[i, j - 1] / strength[i, j - 1]
+            bx = -c3[i, j + 1] / strength[i, j + 1] + c3[i, j - 1] / strength[i, j - 1]
+            ay = -c2[i + 1, j] / strength[i + 1, j] + c2[i - 1, j] / strength[i - 1, j]
+            by = -c3[i + 1, j] / strength[i + 1, j] + c3[i - 1, j] / strength[i - 1, j]
+            grad[i, j] = 0.25 * np.sqrt(ax * ax + bx * bx + ay * ay + by * by)
+
+
 def energy_coefficients(
     responses: tuple[np.ndarray, ...],
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -272,25 +297,26 @@ def angle_map(
     c1, c2, c3 = energy_coefficients(bank.responses(image))
     if blur_sigma > 0:
         c1, c2, c3 = (cv2.GaussianBlur(c, (0, 0), blur_sigma, borderType=cv2.BORDER_REFLECT) for c in (c1, c2, c3))
-    strength = cv2.magnitude(c2, c3)
-    orientedness = strength / np.maximum(c1, np.float32(1e-12))
     # theta_d = atan2(C3, C2) / 2 is the direction of maximal energy (across the stripes),
     # counter-clockwise on screen because the image y axis points down. The stripe orientation
     # theta_d + pi/2 has double angle 2 theta_d + pi, i.e. (cos, sin) = -(C2, C3) / strength,
     # so atan2(-C3, -C2) / 2 lands directly in (-pi/2, pi/2].
-    theta = 0.5 * np.arctan2(-c3, -c2)
+    strength = cv2.magnitude(c2, c3)
     flat = strength.ravel()
     k = int(0.99 * (flat.size - 1))
     ref = float(np.partition(flat, k)[k])
-    valid = (strength >= min_strength * ref) & (orientedness >= min_orientedness) & (ref > 0)
-    if region is not None:
-        region = np.asarray(region, dtype=bool)
-        if region.shape != valid.shape:
-            raise AngleMapError(f"region must have shape {valid.shape}, got {region.shape}")
-        valid &= region
-    theta = np.where(valid, theta, np.float32(np.nan))
-    inv = np.float32(-1.0) / np.maximum(strength, np.float32(1e-30))
-    gradient = _double_angle_gradient(c2 * inv, c3 * inv, valid)
+    if region is None:
+        reg = np.ones(strength.shape, dtype=np.bool_)
+    else:
+        reg = np.asarray(region, dtype=np.bool_)
+        if reg.shape != strength.shape:
+            raise AngleMapError(f"region must have shape {strength.shape}, got {reg.shape}")
+    theta = np.empty_like(strength)
+    orientedness = np.empty_like(strength)
+    valid = np.empty(strength.shape, dtype=np.bool_)
+    gradient = np.zeros_like(strength)
+    _orientation_kernel(c1, c2, c3, strength, reg, np.float32(min_strength * ref if ref > 0 else np.inf),
+                        np.float32(min_orientedness), theta, orientedness, valid, gradient)
     return AngleMap(theta=theta, strength=strength, orientedness=orientedness, valid=valid, gradient=gradient)
 
 
