@@ -342,3 +342,189 @@ def drag_dissipation_potential(
     else:
         integ = s**3 / 3.0
     return float(np.sum(A * (0.5 * k_t * np.einsum("ij,ij->i", vt, vt) + k_n * integ)))
+
+
+@njit(cache=True, fastmath=True)
+def triangle_forces(
+    x: np.ndarray,
+    v: np.ndarray,
+    tris: np.ndarray,
+    coef: np.ndarray,
+    area: np.ndarray,
+    k_stretch: float,
+    k_shear: float,
+    kd_stretch: float,
+    kd_shear: float,
+    k_t: float,
+    k_n: float,
+    k_f: float,
+    wind: np.ndarray,
+    tnorm: np.ndarray,
+    f: np.ndarray,
+) -> None:
+    """Fused per-triangle kernel: stretch + shear (+ damping) + drag, and the triangles'
+    area-weighted normals (M, 3) into ``tnorm`` for :func:`bend_forces_fused`.
+
+    Same forces as :func:`stretch_shear_forces` plus :func:`drag_forces` (one pass over
+    memory instead of two). Units as there.
+    """
+    third = 1.0 / 3.0
+    drag = k_t != 0.0 or k_n != 0.0
+    for t in range(tris.shape[0]):
+        i = tris[t, 0]
+        j = tris[t, 1]
+        k = tris[t, 2]
+        xi0 = x[i, 0]; xi1 = x[i, 1]; xi2 = x[i, 2]
+        xj0 = x[j, 0]; xj1 = x[j, 1]; xj2 = x[j, 2]
+        xk0 = x[k, 0]; xk1 = x[k, 1]; xk2 = x[k, 2]
+        vi0 = v[i, 0]; vi1 = v[i, 1]; vi2 = v[i, 2]
+        vj0 = v[j, 0]; vj1 = v[j, 1]; vj2 = v[j, 2]
+        vk0 = v[k, 0]; vk1 = v[k, 1]; vk2 = v[k, 2]
+        ai = coef[t, 0]; aj = coef[t, 1]; ak = coef[t, 2]
+        bi = coef[t, 3]; bj = coef[t, 4]; bk = coef[t, 5]
+        A = area[t]
+        wu0 = ai * xi0 + aj * xj0 + ak * xk0
+        wu1 = ai * xi1 + aj * xj1 + ak * xk1
+        wu2 = ai * xi2 + aj * xj2 + ak * xk2
+        wv0 = bi * xi0 + bj * xj0 + bk * xk0
+        wv1 = bi * xi1 + bj * xj1 + bk * xk1
+        wv2 = bi * xi2 + bj * xj2 + bk * xk2
+        du0 = ai * vi0 + aj * vj0 + ak * vk0
+        du1 = ai * vi1 + aj * vj1 + ak * vk1
+        du2 = ai * vi2 + aj * vj2 + ak * vk2
+        dv0 = bi * vi0 + bj * vj0 + bk * vk0
+        dv1 = bi * vi1 + bj * vj1 + bk * vk1
+        dv2 = bi * vi2 + bj * vj2 + bk * vk2
+        # normal (area weighted) of the current triangle
+        p0 = xj0 - xi0; p1 = xj1 - xi1; p2 = xj2 - xi2
+        q0 = xk0 - xi0; q1 = xk1 - xi1; q2 = xk2 - xi2
+        n0 = p1 * q2 - p2 * q1
+        n1 = p2 * q0 - p0 * q2
+        n2 = p0 * q1 - p1 * q0
+        tnorm[t, 0] = n0
+        tnorm[t, 1] = n1
+        tnorm[t, 2] = n2
+        lu2 = wu0 * wu0 + wu1 * wu1 + wu2 * wu2
+        lv2 = wv0 * wv0 + wv1 * wv1 + wv2 * wv2
+        fi0 = 0.0; fi1 = 0.0; fi2 = 0.0
+        fj0 = 0.0; fj1 = 0.0; fj2 = 0.0
+        fk0 = 0.0; fk1 = 0.0; fk2 = 0.0
+        if lu2 > 1e-24 and lv2 > 1e-24:
+            iu = 1.0 / math.sqrt(lu2)
+            iv = 1.0 / math.sqrt(lv2)
+            cu = lu2 * iu - 1.0
+            cv = lv2 * iv - 1.0
+            cud = (wu0 * du0 + wu1 * du1 + wu2 * du2) * iu
+            cvd = (wv0 * dv0 + wv1 * dv1 + wv2 * dv2) * iv
+            su = A * (k_stretch * cu + kd_stretch * cud) * iu
+            sv = A * (k_stretch * cv + kd_stretch * cvd) * iv
+            csh = wu0 * wv0 + wu1 * wv1 + wu2 * wv2
+            cshd = du0 * wv0 + du1 * wv1 + du2 * wv2 + wu0 * dv0 + wu1 * dv1 + wu2 * dv2
+            ss = A * (k_shear * csh + kd_shear * cshd)
+            P0 = su * wu0 + ss * wv0
+            P1 = su * wu1 + ss * wv1
+            P2 = su * wu2 + ss * wv2
+            Q0 = sv * wv0 + ss * wu0
+            Q1 = sv * wv1 + ss * wu1
+            Q2 = sv * wv2 + ss * wu2
+            fi0 = -(ai * P0 + bi * Q0); fi1 = -(ai * P1 + bi * Q1); fi2 = -(ai * P2 + bi * Q2)
+            fj0 = -(aj * P0 + bj * Q0); fj1 = -(aj * P1 + bj * Q1); fj2 = -(aj * P2 + bj * Q2)
+            fk0 = -(ak * P0 + bk * Q0); fk1 = -(ak * P1 + bk * Q1); fk2 = -(ak * P2 + bk * Q2)
+        if drag:
+            nl = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if nl > 1e-30:
+                inl = 1.0 / nl
+                m0 = n0 * inl; m1 = n1 * inl; m2 = n2 * inl
+                r0 = (vi0 + vj0 + vk0) * third - wind[0]
+                r1 = (vi1 + vj1 + vk1) * third - wind[1]
+                r2 = (vi2 + vj2 + vk2) * third - wind[2]
+                vn = r0 * m0 + r1 * m1 + r2 * m2
+                fn = k_n * abs(vn) * vn / (1.0 + k_f * vn * vn)
+                s = -0.5 * nl * third
+                g0 = s * (fn * m0 + k_t * (r0 - vn * m0))
+                g1 = s * (fn * m1 + k_t * (r1 - vn * m1))
+                g2 = s * (fn * m2 + k_t * (r2 - vn * m2))
+                fi0 += g0; fi1 += g1; fi2 += g2
+                fj0 += g0; fj1 += g1; fj2 += g2
+                fk0 += g0; fk1 += g1; fk2 += g2
+        f[i, 0] += fi0; f[i, 1] += fi1; f[i, 2] += fi2
+        f[j, 0] += fj0; f[j, 1] += fj1; f[j, 2] += fj2
+        f[k, 0] += fk0; f[k, 1] += fk1; f[k, 2] += fk2
+
+
+@njit(cache=True, fastmath=True)
+def bend_forces_fused(
+    x: np.ndarray,
+    v: np.ndarray,
+    edges: np.ndarray,
+    etris: np.ndarray,
+    tnorm: np.ndarray,
+    bcoef: np.ndarray,
+    brest: np.ndarray,
+    k_bend: float,
+    kd_bend: float,
+    f: np.ndarray,
+) -> None:
+    """:func:`bend_forces` reusing the triangle normals from :func:`triangle_forces`.
+
+    Args:
+        etris: (E, 2) the two triangles of each bend edge (first is (x0, x1, x2)).
+        tnorm: (M, 3) area-weighted triangle normals in each triangle's winding.
+    """
+    if k_bend == 0.0 and kd_bend == 0.0:
+        return
+    for q in range(edges.shape[0]):
+        i0 = edges[q, 0]
+        i1 = edges[q, 1]
+        i2 = edges[q, 2]
+        i3 = edges[q, 3]
+        t1 = etris[q, 0]
+        t2 = etris[q, 1]
+        n10 = tnorm[t1, 0]; n11 = tnorm[t1, 1]; n12 = tnorm[t1, 2]
+        n20 = tnorm[t2, 0]; n21 = tnorm[t2, 1]; n22 = tnorm[t2, 2]
+        x00 = x[i0, 0]; x01 = x[i0, 1]; x02 = x[i0, 2]
+        e0 = x[i1, 0] - x00
+        e1 = x[i1, 1] - x01
+        e2 = x[i1, 2] - x02
+        el2 = e0 * e0 + e1 * e1 + e2 * e2
+        nn1 = n10 * n10 + n11 * n11 + n12 * n12
+        nn2 = n20 * n20 + n21 * n21 + n22 * n22
+        if el2 < 1e-24 or nn1 < 1e-30 or nn2 < 1e-30:
+            continue
+        el = math.sqrt(el2)
+        ie = 1.0 / el
+        c0 = n11 * n22 - n12 * n21
+        c1 = n12 * n20 - n10 * n22
+        c2 = n10 * n21 - n11 * n20
+        sn = (c0 * e0 + c1 * e1 + c2 * e2) * ie
+        cs = n10 * n20 + n11 * n21 + n12 * n22
+        theta = math.atan2(sn, cs)
+        inv1 = 1.0 / nn1
+        inv2 = 1.0 / nn2
+        m10 = n10 * inv1; m11 = n11 * inv1; m12 = n12 * inv1
+        m20 = n20 * inv2; m21 = n21 * inv2; m22 = n22 * inv2
+        d20 = ((x[i2, 0] - x00) * e0 + (x[i2, 1] - x01) * e1 + (x[i2, 2] - x02) * e2) * ie
+        d21 = el - d20
+        d30 = ((x[i3, 0] - x00) * e0 + (x[i3, 1] - x01) * e1 + (x[i3, 2] - x02) * e2) * ie
+        d31 = el - d30
+        g20 = -el * m10; g21 = -el * m11; g22 = -el * m12
+        g30 = -el * m20; g31 = -el * m21; g32 = -el * m22
+        g00 = d21 * m10 + d31 * m20
+        g01 = d21 * m11 + d31 * m21
+        g02 = d21 * m12 + d31 * m22
+        g10 = d20 * m10 + d30 * m20
+        g11 = d20 * m11 + d30 * m21
+        g12 = d20 * m12 + d30 * m22
+        thd = 0.0
+        if kd_bend != 0.0:
+            thd = (
+                g00 * v[i0, 0] + g01 * v[i0, 1] + g02 * v[i0, 2]
+                + g10 * v[i1, 0] + g11 * v[i1, 1] + g12 * v[i1, 2]
+                + g20 * v[i2, 0] + g21 * v[i2, 1] + g22 * v[i2, 2]
+                + g30 * v[i3, 0] + g31 * v[i3, 1] + g32 * v[i3, 2]
+            )
+        s = bcoef[q] * (k_bend * (theta - brest[q]) + kd_bend * thd)
+        f[i0, 0] -= s * g00; f[i0, 1] -= s * g01; f[i0, 2] -= s * g02
+        f[i1, 0] -= s * g10; f[i1, 1] -= s * g11; f[i1, 2] -= s * g12
+        f[i2, 0] -= s * g20; f[i2, 1] -= s * g21; f[i2, 2] -= s * g22
+        f[i3, 0] -= s * g30; f[i3, 1] -= s * g31; f[i3, 2] -= s * g32

@@ -28,7 +28,7 @@ from vidsim.cloth.collision import (
     edge_collision_forces,
     self_collision_forces,
 )
-from vidsim.cloth.forces import bend_forces, drag_forces, gravity_forces, stretch_shear_forces
+from vidsim.cloth.forces import bend_forces_fused, triangle_forces
 
 STATUS_TEXT = {
     0: None,
@@ -120,7 +120,7 @@ def _accel(
     Returns the (possibly rebuilt) self-collision candidate pairs
     (vertex-triangle, edge-edge).
     """
-    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare = model
+    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare, etris, tnorm = model
     didx, dtimes, dpos, dvel = drv
     ctimes, sc, sr, ca, cb, cr = col
     D = didx.shape[0]
@@ -131,11 +131,10 @@ def _accel(
             for c in range(3):
                 x[i, c] = dwork[0, d, c]
                 v[i, c] = dwork[1, d, c]
-    f[:] = 0.0
-    stretch_shear_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_SHEAR], P[P_KDS], P[P_KDSH], f)
-    bend_forces(x, v, edges, bcoef, brest, P[P_BEND], P[P_KDB], f)
-    drag_forces(x, v, tris, P[P_KT], P[P_KN], P[P_KF], wind, f)
-    gravity_forces(x, mass, g, f)
+    gravity_init(mass, g, f)
+    triangle_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_SHEAR], P[P_KDS], P[P_KDSH],
+                    P[P_KT], P[P_KN], P[P_KF], wind, tnorm, f)
+    bend_forces_fused(x, v, edges, etris, tnorm, bcoef, brest, P[P_BEND], P[P_KDB], f)
     collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
     if P[P_SELFON] > 0:
         h = P[P_SELFH]
@@ -167,6 +166,15 @@ def _accel(
         for c in range(3):
             acc[i, c] = dwork[2, d, c]
     return pairs, epairs
+
+
+@njit(cache=True)
+def gravity_init(mass: np.ndarray, g: np.ndarray, f: np.ndarray) -> None:
+    """Set f = m g (the force accumulator starts from gravity)."""
+    for i in range(mass.shape[0]):
+        f[i, 0] = mass[i] * g[0]
+        f[i, 1] = mass[i] * g[1]
+        f[i, 2] = mass[i] * g[2]
 
 
 @njit(cache=True)
@@ -394,10 +402,13 @@ def _symplectic_loop(
                     v[i, c] += 0.5 * h * acc[i, c]
             _set_driven(t, x, v, drv, dwork)
             steps += 1
-            st = _check(x, v, vmax)
-            if st != 0:
-                status = st
-                break
+            if s % 16 == 15:
+                st = _check(x, v, vmax)
+                if st != 0:
+                    status = st
+                    break
+        if status == 0:
+            status = _check(x, v, vmax)
         if status != 0:
             break
         out[fi] = x

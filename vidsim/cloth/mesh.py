@@ -39,6 +39,7 @@ class ClothMesh:
             first triangle (x0, x1, x2); the second triangle is (x1, x0, x3).
         bend_coef: (E,) |e|^2 / (A1 + A2) at rest (dimensionless).
         bend_rest: (E,) rest dihedral angles [rad] (zero for a flat rest shape).
+        bend_tris: (E, 2) the two triangles of each bend edge.
         vertex_area: (N,) lumped rest area per vertex [m^2].
         vertex_valence: (N,) number of triangles per vertex.
         tri_edge_share: (M, 3) triangles sharing the edge opposite each corner.
@@ -54,6 +55,7 @@ class ClothMesh:
     bend_edges: np.ndarray = field(init=False, repr=False)
     bend_coef: np.ndarray = field(init=False, repr=False)
     bend_rest: np.ndarray = field(init=False, repr=False)
+    bend_tris: np.ndarray = field(init=False, repr=False)
     vertex_area: np.ndarray = field(init=False, repr=False)
     vertex_valence: np.ndarray = field(init=False, repr=False)
     tri_edge_share: np.ndarray = field(init=False, repr=False)
@@ -109,7 +111,8 @@ class ClothMesh:
         _, inv, cnt = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
         object.__setattr__(self, "tri_edge_share", cnt[inv.ravel()].reshape(-1, 3).astype(np.float64))
 
-        edges, coefs, rest = _bend_edges(X, T, area)
+        edges, coefs, rest, etris = _bend_edges(X, T, area)
+        object.__setattr__(self, "bend_tris", etris)
         if self.flat_rest_bend:
             rest = np.zeros_like(rest)
         object.__setattr__(self, "bend_edges", edges)
@@ -155,7 +158,7 @@ def _dihedral(x0: np.ndarray, x1: np.ndarray, x2: np.ndarray, x3: np.ndarray) ->
     return np.arctan2(s, c)
 
 
-def _bend_edges(X: np.ndarray, T: np.ndarray, area: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _bend_edges(X: np.ndarray, T: np.ndarray, area: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Interior edges with opposite vertices; raises on non-manifold or flipped meshes."""
     first: dict[tuple[int, int], tuple[int, int]] = {}
     out = []
@@ -176,13 +179,13 @@ def _bend_edges(X: np.ndarray, T: np.ndarray, area: np.ndarray) -> tuple[np.ndar
             out.append((x0, x1, x2, x3, t0, t))
     if not out:
         z = np.zeros((0, 4), dtype=np.int64)
-        return z, np.zeros(0), np.zeros(0)
+        return z, np.zeros(0), np.zeros(0), np.zeros((0, 2), dtype=np.int64)
     arr = np.array(out, dtype=np.int64)
     edges = np.ascontiguousarray(arr[:, :4])
     L2 = np.sum((X[edges[:, 1]] - X[edges[:, 0]]) ** 2, axis=1)
     coefs = L2 / (area[arr[:, 4]] + area[arr[:, 5]])
     rest = _dihedral(X[edges[:, 0]], X[edges[:, 1]], X[edges[:, 2]], X[edges[:, 3]])
-    return edges, coefs, rest
+    return edges, coefs, rest, np.ascontiguousarray(arr[:, 4:6])
 
 
 def _grid_triangles(nu: int, nv: int, wrap_u: bool = False) -> np.ndarray:

@@ -147,7 +147,7 @@ class ClothParams:
     gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
     collision_stiffness: float = 2e5
     collision_thickness: float = 3e-3
-    self_collision_stiffness: float = 1e5
+    self_collision_stiffness: float = 3e5
     self_collision_thickness: float = 3e-3
 
     _POSITIVE: ClassVar[tuple[str, ...]] = (

@@ -223,6 +223,8 @@ def _model(mesh: ClothMesh, params: ClothParams, wind: np.ndarray) -> tuple:
         mesh.unique_edges(),
         mesh.vertex_valence,
         mesh.tri_edge_share,
+        mesh.bend_tris,
+        np.zeros((mesh.n_triangles, 3)),
     )
 
 
@@ -320,7 +322,7 @@ def stable_step(
     driven: np.ndarray | None = None,
     self_collision: bool = False,
     colliders: Colliders | None = None,
-    safety: float = 0.8,
+    safety: float = 0.9,
     iterations: int = 30,
     v_ref: float = 5.0,
 ) -> tuple[float, dict[str, float]]:
@@ -406,7 +408,7 @@ def simulate(
     rtol: float = 1e-3,
     atol_x: float = 1e-4,
     atol_v: float = 1e-3,
-    safety: float = 0.8,
+    safety: float = 0.9,
     dt: float | None = None,
     max_steps: int = 2_000_000,
     v_max: float = 100.0,

@@ -48,10 +48,11 @@ def crumple():
     return mesh, mid_range_params(), cols, times, x0, v0
 
 
-def test_crumpled_swatch_never_self_intersects(crumple):
+@pytest.mark.parametrize("integrator", ["fast", "rk45"])
+def test_crumpled_swatch_never_self_intersects(crumple, integrator):
     mesh, p, cols, times, x0, v0 = crumple
     edges = mesh.unique_edges()
-    res = simulate(mesh, p, None, times, integrator="fast", self_collision=True, x0=x0, v0=v0, colliders=cols)
+    res = simulate(mesh, p, None, times, integrator=integrator, self_collision=True, x0=x0, v0=v0, colliders=cols)
     assert res.ok, res.failure
     counts = [count_self_intersections(res.positions[k], mesh.triangles, edges) for k in range(len(times))]
     assert max(counts) == 0, counts

@@ -1,0 +1,295 @@
+"""Cloth simulator benchmark (vidsim.cloth): speed per integrator, force cost, artificial
+damping, MuJoCo flex comparison, and cost growth with resolution.
+
+Usage::
+
+    NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/bench_cloth_sim.py [speed force damping mujoco scaling]
+
+Case (issue 4): a 20x20-vertex swatch, 0.3 m, 0.2 kg/m^2, its two top corners waved
+(5 cm sideways at 1.5 Hz, 8 cm back and forth at 1 Hz, 3 cm up-down), mid-range
+parameters (:func:`vidsim.cloth.mid_range_params`), 50 frames at 30 Hz. Every figure is
+the median of several runs after a warm-up run (numba compilation excluded). The plot of
+the scaling section goes to ``results/benchmarks/cloth_scaling.png``.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import sys  # noqa: E402
+import time  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from vidsim.cloth import ClothParams, DrivenVertices, energies, mid_range_params, simulate, swatch  # noqa: E402
+from vidsim.cloth.integrate import _accel  # noqa: E402
+from vidsim.cloth.simulate import _col, _drv, _model, _param_vector  # noqa: E402
+from vidsim.cloth.collision import Colliders  # noqa: E402
+
+SIZE = 0.3
+TIMES = np.arange(50) / 30.0
+
+
+def wave_offset(t: float) -> np.ndarray:
+    """Offset [m] of both gripped corners at time t [s]."""
+    return np.array([0.05 * np.sin(2 * np.pi * 1.5 * t), 0.08 * np.sin(2 * np.pi * 1.0 * t),
+                     0.03 * (1 - np.cos(2 * np.pi * 1.5 * t))])
+
+
+def wave(mesh) -> DrivenVertices:
+    idx = mesh.tags["top_corners"]
+    p0 = mesh.rest_positions[idx]
+    return DrivenVertices.from_function(idx, lambda t: p0 + wave_offset(t), 0.0, TIMES[-1], 1000.0)
+
+
+def median_time(fn, runs: int = 5) -> tuple[float, object]:
+    out = fn()  # warm-up
+    ts = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        out = fn()
+        ts.append(time.perf_counter() - t)
+    return float(np.median(ts)), out
+
+
+def max_edge_strain(mesh, X: np.ndarray) -> float:
+    e = mesh.unique_edges()
+    L0 = np.linalg.norm(mesh.rest_positions[e[:, 0]] - mesh.rest_positions[e[:, 1]], axis=1)
+    L = np.linalg.norm(X[:, e[:, 0]] - X[:, e[:, 1]], axis=-1)
+    return float(np.max(L / L0 - 1.0))
+
+
+def bench_speed() -> dict:
+    mesh = swatch(20, 20, SIZE, SIZE)
+    p = mid_range_params()
+    drv = wave(mesh)
+    print("\n## 50 frames at 30 Hz, 20x20 swatch (722 triangles), mid-range parameters")
+    print("| integrator | self collision | median wall [s] | steps | rejected | force evals | step [ms] | max edge strain |")
+    print("|---|---|---|---|---|---|---|---|")
+    out = {}
+    for integ in ("fast", "rk45"):
+        for sc in (False, True):
+            if integ == "rk45" and sc:
+                runs = 3
+            else:
+                runs = 5
+            t, r = median_time(lambda: simulate(mesh, p, drv, TIMES, integrator=integ, self_collision=sc), runs)
+            assert r.ok, r.failure
+            out[(integ, sc)] = (t, r)
+            print(f"| {integ} | {sc} | {t:.3f} | {r.steps} | {r.rejected} | {r.evaluations} | {1e3 * r.dt:.3f} | "
+                  f"{100 * max_edge_strain(mesh, r.positions):.1f} % |")
+    a = out[("fast", False)][1].positions
+    b = out[("rk45", False)][1].positions
+    print(f"fast vs rk45: max vertex distance over 50 frames {1e3 * np.max(np.linalg.norm(a - b, axis=-1)):.2f} mm")
+    return out
+
+
+def bench_force() -> None:
+    print("\n## force evaluation (all forces, no self collision), ns per triangle incl. its bend edges")
+    print("| mesh | triangles | bend edges | median per evaluation [us] | ns / triangle |")
+    print("|---|---|---|---|---|")
+    p = mid_range_params()
+    rng = np.random.default_rng(0)
+    for n in (20, 40, 60):
+        mesh = swatch(n, n, SIZE, SIZE)
+        x = mesh.rest_positions + 1e-3 * rng.standard_normal(mesh.rest_positions.shape)
+        v = 0.1 * rng.standard_normal(x.shape)
+        model = _model(mesh, p, np.zeros(3))
+        P = _param_vector(mesh, p, False)
+        drv = _drv(DrivenVertices.none())
+        col = _col(Colliders.none())
+        acc = np.zeros_like(x)
+        f = np.zeros_like(x)
+        pr = -np.ones((1, 2), dtype=np.int64)
+        ep = np.zeros((0, 2), dtype=np.int64)
+        dw = np.zeros((3, 1, 3))
+        reps = max(200, 400000 // mesh.n_triangles)
+
+        def loop():
+            for _ in range(reps):
+                _accel(0.0, x, v, acc, f, model, P, drv, dw, col, pr, ep, x)
+
+        t, _ = median_time(loop, 7)
+        per = t / reps
+        print(f"| {n}x{n} | {mesh.n_triangles} | {mesh.bend_edges.shape[0]} | {1e6 * per:.1f} | "
+              f"{1e9 * per / mesh.n_triangles:.0f} |")
+
+
+def bench_damping() -> None:
+    """Artificial damping: a strip hanging from its pinned top row, released at rest length,
+    bounces in its stretch modes with all physical damping and drag off. The energy above
+    the static equilibrium, E_osc, must stay constant; its loss per second is numerical."""
+    print("\n## artificial damping (physical damping and drag off), 20x20 swatch pinned along its top row")
+    mesh = swatch(20, 20, SIZE, SIZE)
+    top = mesh.tags["top_row"]
+    drv = DrivenVertices.fixed(top, mesh.rest_positions[top])
+    p0 = mid_range_params(bend_damping=0.0, stretch_damping=0.0, shear_damping=0.0, drag_linear=0.0,
+                          drag_quad=0.0, drag_degrade=0.0)
+    # static equilibrium energy: same system with heavy tangential drag, settled
+    settled = simulate(mesh, p0.replace(drag_linear=50.0), drv, np.array([0.0, 1.5]), integrator="fast")
+    e_eq = energies(mesh, p0, settled.positions[-1], np.zeros((mesh.n_vertices, 3)))["total"]
+    T = 2.0
+    times = np.linspace(0.0, T, 201)
+    print("| scheme | step [ms] | E_osc(0) [mJ] | energy loss per second (fraction of E_osc) |")
+    print("|---|---|---|---|")
+    for integ, kw in (("fast", {}), ("rk45", {}), ("rk45", {"rtol": 1e-5, "atol_x": 1e-6, "atol_v": 1e-5})):
+        r = simulate(mesh, p0, drv, times, integrator=integ, **kw)
+        E = np.array([energies(mesh, p0, r.positions[k], r.velocities[k])["total"] for k in range(len(times))])
+        osc = E - e_eq
+        # average over the last and first 0.2 s to remove the exchange with unresolved phases
+        e0 = osc[:21].mean()
+        e1 = osc[-21:].mean()
+        rate = (e0 - e1) / e0 / (T - 0.2)
+        label = integ + (" (rtol 1e-5)" if kw else " (rtol 1e-3, default)")
+        print(f"| {label} | {1e3 * r.dt:.3f} | {1e3 * osc[0]:.3f} | {100 * rate:.3f} % /s |")
+    # backward Euler, for comparison, analytic: amplitude factor 1/sqrt(1 + (h w)^2) per step
+    w1 = np.pi / (2 * SIZE) * np.sqrt(p0.stretch / p0.density)
+    for h in (1 / 300, 1 / 1000):
+        per_step = 1.0 / (1.0 + (h * w1) ** 2)  # energy factor
+        print(f"| implicit Euler (analytic, lowest stretch mode w = {w1:.0f} rad/s), h = {1e3 * h:.2f} ms | "
+              f"{1e3 * h:.3f} | - | {100 * (1 - per_step ** (1 / h)):.1f} % /s |")
+
+
+def bench_mujoco(ours: dict | None) -> None:
+    import mujoco
+
+    n = 20
+    mesh = swatch(n, n, SIZE, SIZE)
+    p = mid_range_params()
+    s = SIZE / (n - 1)
+    print("\n## MuJoCo 4.0 flex cloth, same mesh size, mass and motion (implicitfast, edge equality constraints)")
+    print("| solref timeconst [s] | timestep [ms] | median wall [s] | max edge strain | ok |")
+    print("|---|---|---|---|---|")
+    best = None
+    for tc in (0.004, 0.002):
+        for dt in (2e-3, 1e-3, 5e-4):
+            if tc < 2 * dt:  # MuJoCo requires timeconst >= 2 timestep (clamped otherwise)
+                continue
+            xml = f"""
+<mujoco>
+  <option timestep="{dt}" integrator="implicitfast" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="grip" mocap="true" pos="0 0 0">
+      <flexcomp name="cloth" type="grid" count="{n} {n} 1" spacing="{s} {s} {s}" mass="{p.density * SIZE * SIZE}"
+                radius="0.001" dim="2" euler="90 0 0" pos="{SIZE / 2} 0 {-SIZE / 2}">
+        <edge equality="true" solref="{tc} 1"/>
+        <contact selfcollide="none" conaffinity="0" contype="0"/>
+        <pin id="{n - 1} {n * n - 1}"/>
+      </flexcomp>
+    </body>
+  </worldbody>
+</mujoco>"""
+            model = mujoco.MjModel.from_xml_string(xml)
+            data = mujoco.MjData(model)
+            edges = model.flex_edge.reshape(-1, 2)
+
+            def run():
+                mujoco.mj_resetData(model, data)
+                mujoco.mj_forward(model, data)
+                x0 = data.flexvert_xpos.copy()
+                L0 = np.linalg.norm(x0[edges[:, 0]] - x0[edges[:, 1]], axis=1)
+                strain = 0.0
+                nsteps = int(round(TIMES[-1] / dt))
+                fi = 1
+                for k in range(nsteps):
+                    data.mocap_pos[0] = wave_offset((k + 1) * dt)
+                    mujoco.mj_step(model, data)
+                    if fi < len(TIMES) and (k + 1) * dt >= TIMES[fi] - 1e-9:
+                        x = data.flexvert_xpos
+                        L = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+                        strain = max(strain, float(np.max(L / L0 - 1)))
+                        fi += 1
+                ok = bool(np.all(np.isfinite(data.qpos)))
+                return strain, ok
+
+            t, (strain, ok) = median_time(run, 3)
+            print(f"| {tc} | {1e3 * dt:.2f} | {t:.3f} | {100 * strain:.1f} % | {ok} |")
+            if ok and strain <= 0.10 and (best is None or t < best[0]):
+                best = (t, tc, dt, strain)
+    if best is None:
+        print("no MuJoCo setting reached max edge strain <= 10 %")
+        return
+    t_mj, tc, dt, strain = best
+    print(f"fastest MuJoCo setting with max edge strain <= 10 %: solref {tc} 1, timestep {1e3 * dt} ms: {t_mj:.3f} s "
+          f"(strain {100 * strain:.1f} %)")
+    if ours:
+        for integ in ("fast", "rk45"):
+            t_o, r = ours[(integ, False)]
+            print(f"ours ({integ}, max edge strain {100 * max_edge_strain(mesh, r.positions):.1f} %): {t_o:.3f} s; "
+                  f"ratio ours / MuJoCo = {t_o / t_mj:.2f}")
+
+
+def bench_scaling() -> None:
+    print("\n## cost growth with resolution (50 frames, waving, mid-range parameters)")
+    print("| n x n | triangles | fast [s] | fast + self collision [s] | rk45 [s] | fast steps |")
+    print("|---|---|---|---|---|---|")
+    p = mid_range_params()
+    rows = []
+    for n in (10, 20, 30, 40, 60):
+        mesh = swatch(n, n, SIZE, SIZE)
+        drv = wave(mesh)
+        runs = 3 if n <= 30 else 1
+        tf, rf = median_time(lambda: simulate(mesh, p, drv, TIMES, integrator="fast"), runs)
+        ok_sc = True
+        try:
+            ts, rs = median_time(lambda: simulate(mesh, p, drv, TIMES, integrator="fast", self_collision=True), runs)
+            ok_sc = rs.ok
+        except ValueError as exc:  # thickness too large for the finest mesh
+            ts, ok_sc = float("nan"), str(exc)[:40]
+        if n <= 40:
+            tr, rr = median_time(lambda: simulate(mesh, p, drv, TIMES, integrator="rk45"), 1 if n >= 30 else 3)
+        else:
+            tr = float("nan")
+        rows.append((n, mesh.n_triangles, tf, ts, tr))
+        print(f"| {n} | {mesh.n_triangles} | {tf:.3f} | {ts:.3f} | {tr:.3f} | {rf.steps} |")
+    arr = np.array(rows, dtype=float)
+    names = {2: "fast", 3: "fast + self collision", 4: "rk45"}
+    for c, name in names.items():
+        ok = np.isfinite(arr[:, c])
+        k = np.polyfit(np.log(arr[ok, 0]), np.log(arr[ok, c]), 1)[0]
+        print(f"growth exponent ({name}): time ~ n^{k:.2f} (n vertices per side)")
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        from vidsim.io.atomic import atomic_path
+        from vidsim.io.paths import results_dir
+
+        fig, ax = plt.subplots(figsize=(5, 4))
+        for c, name in names.items():
+            ok = np.isfinite(arr[:, c])
+            ax.loglog(arr[ok, 0], arr[ok, c], "o-", label=name)
+        ax.loglog(arr[:, 0], arr[1, 2] * (arr[:, 0] / 20) ** 3, "k--", lw=0.8, label="n^3")
+        ax.set_xlabel("vertices per side n")
+        ax.set_ylabel("wall time for 50 frames [s]")
+        ax.legend()
+        fig.tight_layout()
+        out = results_dir() / "benchmarks" / "cloth_scaling.png"
+        with atomic_path(out) as tmp:
+            fig.savefig(tmp, dpi=100)
+        print(f"plot: {out}")
+    except Exception as exc:  # plotting is optional
+        print(f"plot skipped: {exc}")
+
+
+def main(argv: list[str]) -> None:
+    which = set(argv) or {"speed", "force", "damping", "mujoco", "scaling"}
+    print(f"cloth simulator benchmark; numba threads = {os.environ.get('NUMBA_NUM_THREADS')}")
+    ours = bench_speed() if ("speed" in which or "mujoco" in which) else None
+    if "force" in which:
+        bench_force()
+    if "damping" in which:
+        bench_damping()
+    if "mujoco" in which:
+        bench_mujoco(ours)
+    if "scaling" in which:
+        bench_scaling()
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,46 @@
+"""Divergence returns a failure object; bad inputs raise clear ValueErrors."""
+
+import numpy as np
+import pytest
+
+from vidsim.cloth import ClothInputError, DrivenVertices, mid_range_params, simulate, swatch
+
+
+def _setup():
+    mesh = swatch(8, 8, 0.3, 0.3)
+    idx = mesh.tags["top_corners"]
+    return mesh, DrivenVertices.fixed(idx, mesh.rest_positions[idx])
+
+
+def test_unstable_step_reports_blow_up_not_exception():
+    mesh, drv = _setup()
+    res = simulate(mesh, mid_range_params(), drv, np.arange(20) / 30, integrator="fast", dt=5e-3)
+    assert not res.ok
+    assert "blow-up" in res.failure or "non-finite" in res.failure
+    assert res.frames_done < 20
+    assert np.all(np.isnan(res.positions[res.frames_done:]))
+    assert np.all(np.isfinite(res.positions[: res.frames_done]))
+    assert np.isfinite(res.penalty()) and res.penalty() >= 1e6
+
+
+def test_step_budget_reports_failure():
+    mesh, drv = _setup()
+    res = simulate(mesh, mid_range_params(), drv, np.arange(5) / 30, integrator="rk45", max_steps=10)
+    assert not res.ok and "budget" in res.failure
+    assert res.penalty() > 0
+
+
+def test_bad_inputs_raise_naming_the_field():
+    mesh, drv = _setup()
+    p = mid_range_params()
+    with pytest.raises(ClothInputError, match="integrator"):
+        simulate(mesh, p, drv, [0.0, 0.1], integrator="euler")
+    with pytest.raises(ClothInputError, match="times"):
+        simulate(mesh, p, drv, [0.1, 0.0])
+    with pytest.raises(ClothInputError, match="x0"):
+        simulate(mesh, p, drv, [0.0, 0.1], x0=np.zeros((3, 3)))
+    short = DrivenVertices(drv.indices, [0.0, 0.05], np.repeat(drv.positions, 2, axis=0))
+    with pytest.raises(ClothInputError, match="driver covers"):
+        simulate(mesh, p, short, [0.0, 0.1])
+    with pytest.raises(ClothInputError, match="driver positions"):
+        DrivenVertices([0, 1], [0.0], np.zeros((1, 3, 3)))
