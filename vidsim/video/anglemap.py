@@ -250,6 +250,9 @@ def energy_coefficients(
     if len(responses) != 7:
         raise AngleMapError(f"responses must hold the 7 basis responses, got {len(responses)}")
     ga, gb, gc, ha, hb, hc, hd = responses
+    shapes = {np.shape(x) for x in responses}
+    if len(shapes) != 1:
+        raise AngleMapError(f"the 7 basis responses must have equal shapes, got {sorted(shapes)}")
     if all(isinstance(x, np.ndarray) and x.ndim == 2 and x.dtype == np.float32 for x in responses):
         c1, c2, c3 = (np.empty_like(ga) for _ in range(3))
         _coefficients_kernel(ga, gb, gc, ha, hb, hc, hd, c1, c2, c3)

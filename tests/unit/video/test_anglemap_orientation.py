@@ -151,6 +151,10 @@ def test_bad_inputs_raise_clear_errors():
     z = np.zeros((2, 5, 5))
     with pytest.raises(AngleMapError, match="same"):
         cloth_metric(z, z, z, np.zeros((2, 5, 6)), z)
+    with pytest.raises(AngleMapError, match="equal shapes"):
+        energy_coefficients(tuple(np.zeros((4, 4 + (k == 3)), np.float32) for k in range(7)))
+    with pytest.raises(AngleMapError, match="region"):
+        angle_map(np.zeros((20, 20)), region=np.ones((20, 21), bool))
     with pytest.raises(AngleMapError, match="alpha"):
         cloth_metric(z, z, z, z, z, alpha=-1.0)
 
