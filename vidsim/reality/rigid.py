@@ -156,13 +156,13 @@ def simulate_mujoco(body: BoxBody, effects: RigidEffects, x0: np.ndarray, q0: np
     model = mujoco.MjModel.from_xml_string(mujoco_xml(body, effects))
     data = mujoco.MjData(model)
     R0 = quat_to_rot(np.asarray(q0, float))
-    off = np.asarray(effects.com_offset, float)
     data.qpos[:3] = x0
     data.qpos[3:7] = np.asarray(q0, float) / np.linalg.norm(q0)
     # free joint: qvel[:3] is the velocity of the body-frame origin, qvel[3:] the spin in body axes
     data.qvel[:3] = v0
     data.qvel[3:6] = R0.T @ np.asarray(w0_world, float)
-    del off  # the initial state is given for the body-frame origin, as the footage's meta defines it
+    # the initial state is that of the body-frame origin (the stated centre of mass, as meta.yaml
+    # defines it); with a centre-of-mass offset MuJoCo's true centre moves on a parabola instead
     mujoco.mj_forward(model, data)
     order = np.argsort(times)
     pos = np.zeros((len(times), 3))

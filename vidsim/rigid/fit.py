@@ -27,7 +27,6 @@ from scipy.optimize import minimize
 
 from vidsim.rigid.body import BoxBody, RigidBodyError
 from vidsim.rigid.dynamics import (
-    G_EARTH,
     N_PARAM,
     pose_tangent_jacobian,
     quat_exp,
