@@ -10,10 +10,11 @@ Self collision is vertex-triangle plus edge-edge repulsion (the closest points g
 and opposite forces shared by the corners with barycentric weights, so linear and
 angular momentum are conserved); edge-edge contacts catch crossing creases that no
 vertex comes near. Culling uses a Verlet list:
-candidate (vertex, triangle) and (edge, edge) pairs within ``3 h`` are found with a
-uniform hash grid (cost linear in mesh size) and reused until some vertex has moved more
-than ``h`` since the list was built, which guarantees that no pair closer than ``h`` is
-missed.
+candidate (vertex, triangle) and (edge, edge) pairs within ``h + margin`` are found with
+a uniform hash grid (cost linear in mesh size) and reused until some vertex has moved more
+than ``margin / 2`` since the list was built, which guarantees that no pair closer than
+``h`` is missed. The margin is 2h, reduced (to no less than h/4) on fine meshes so that
+the in-plane neighbours of a flat sheet stay out of the list.
 """
 
 from __future__ import annotations

@@ -40,8 +40,8 @@ STATUS_TEXT = {
 
 # parameter vector layout
 P_BEND, P_STRETCH, P_SHEAR, P_KDB, P_KDS, P_KDSH, P_KT, P_KN, P_KF = range(9)
-P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL = range(9, 15)
-N_P = 15
+P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL, P_MARGIN = range(9, 16)
+N_P = 16
 
 
 @njit(cache=True)
@@ -138,8 +138,9 @@ def _accel(
     collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
     if P[P_SELFON] > 0:
         h = P[P_SELFH]
-        # Verlet list searched within 3h: valid until some vertex moved more than h
-        lim = h * h
+        # Verlet list searched within h + margin: valid until some vertex moved more than margin/2
+        margin = P[P_MARGIN]
+        lim = 0.25 * margin * margin
         rebuild = pairs.shape[0] == 1 and pairs[0, 0] < 0
         if not rebuild:
             for i in range(x.shape[0]):
@@ -150,8 +151,8 @@ def _accel(
                     rebuild = True
                     break
         if rebuild:
-            pairs = build_self_pairs(x, tris, 3.0 * h, P[P_CELL])
-            epairs = build_edge_pairs(x, uedges, 3.0 * h, P[P_CELL])
+            pairs = build_self_pairs(x, tris, h + margin, P[P_CELL])
+            epairs = build_edge_pairs(x, uedges, h + margin, P[P_CELL])
             xref[:] = x
         self_collision_forces(x, tris, vert_area, pairs, P[P_SELFK], h, f, vshare, eshare)
         edge_collision_forces(x, uedges, vert_area, epairs, P[P_SELFK], h, f)

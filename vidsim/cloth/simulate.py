@@ -46,6 +46,7 @@ from vidsim.cloth.integrate import (
     P_KF,
     P_KN,
     P_KT,
+    P_MARGIN,
     P_SELFH,
     P_SELFK,
     P_SELFON,
@@ -203,7 +204,11 @@ def _param_vector(mesh: ClothMesh, params: ClothParams, self_collision: bool) ->
     P[P_SELFON] = 1.0 if self_collision else 0.0
     e = mesh.unique_edges()
     mean_edge = float(np.mean(np.linalg.norm(mesh.rest_positions[e[:, 0]] - mesh.rest_positions[e[:, 1]], axis=1)))
-    P[P_CELL] = max(mean_edge, 4.0 * params.self_collision_thickness)
+    h = params.self_collision_thickness
+    P[P_CELL] = max(mean_edge, 4.0 * h)
+    # Verlet-list margin: large enough to rebuild rarely, small enough that the in-plane
+    # neighbours of a flat sheet (>= ~0.7 edge lengths away) stay out of the list
+    P[P_MARGIN] = min(2.0 * h, max(0.25 * h, 0.7 * mesh.min_rest_edge() - h))
     return P
 
 
