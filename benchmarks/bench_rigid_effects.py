@@ -24,9 +24,9 @@ from vidsim.rigid.fit import fit_throw  # noqa: E402
 
 CASES = {
     "none": RigidEffects(),
-    "drag x1": RigidEffects(drag=1.0),
-    "drag x1 + Magnus x1": RigidEffects(drag=1.0, magnus=1.0),
-    "wind 3 m/s (drag x1)": RigidEffects(drag=1.0, wind=[3.0, 0.0, 0.0]),
+    "drag x1": RigidEffects(drag=1.0, angular_drag=1.0),
+    "drag x1 + Magnus x1": RigidEffects(drag=1.0, angular_drag=1.0, magnus=1.0),
+    "wind 3 m/s (drag x1)": RigidEffects(drag=1.0, angular_drag=1.0, wind=[3.0, 0.0, 0.0]),
     "COM offset 1 cm": RigidEffects(com_offset=[0.01, 0.0, 0.0]),
     "lens k1 = -0.05": RigidEffects(lens_k1=-0.05),
     "time jitter 2 ms": RigidEffects(time_jitter=0.002),

@@ -5,9 +5,11 @@ z up and gravity (0, 0, -9.81); the camera looks roughly along world +y with a r
 and roll that the estimator does not know (it works in the camera frame and estimates gravity's
 direction there). Effects, each off by default and scaled from config (:class:`RigidEffects`):
 
-* ``drag`` / ``magnus`` / ``wind``: MuJoCo's ellipsoid fluid model (air density 1.2 kg/m^3,
-  viscosity 1.8e-5 Pa s) on each box, so drag also twists the body; ``drag`` scales the blunt,
-  slender and angular drag coefficients, ``magnus`` the Magnus lift coefficient;
+* ``drag`` / ``angular_drag`` / ``magnus`` / ``wind``: MuJoCo's ellipsoid fluid model (air density
+  1.2 kg/m^3, viscosity 1.8e-5 Pa s) on each box, so drag also twists the body; ``drag`` scales the
+  blunt and slender drag and the Kutta lift coefficients, ``angular_drag`` the rotational drag,
+  ``magnus`` the Magnus lift coefficient (MuJoCo defaults 0.5, 0.25, 1.0, 1.5, 1.0 at scale 1);
+  ``wind`` (world m/s) acts through them;
 * ``com_offset``: the true centre of mass sits this far (body axes, metres) from where
   ``meta.yaml`` says;
 * ``lens_k1``: radial distortion the calibration does not know;
@@ -48,6 +50,7 @@ class RigidEffects:
     """Reality effects, all off by default (see module docstring for units)."""
 
     drag: float = 0.0
+    angular_drag: float = 0.0
     magnus: float = 0.0
     wind: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     com_offset: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -58,7 +61,7 @@ class RigidEffects:
 
     def validate(self) -> None:
         """Raise :class:`RigidBodyError` naming the field when a setting is not physical."""
-        for name in ("drag", "magnus", "exposure", "rolling_shutter", "time_jitter"):
+        for name in ("drag", "angular_drag", "magnus", "exposure", "rolling_shutter", "time_jitter"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
                 raise RigidBodyError(f"effects: '{name}' must be finite and >= 0, got {v}")
@@ -68,6 +71,17 @@ class RigidEffects:
                 raise RigidBodyError(f"effects: '{name}' must be 3 finite numbers, got {getattr(self, name)}")
         if not (np.isfinite(self.lens_k1) and abs(self.lens_k1) < 1.0):
             raise RigidBodyError(f"effects: 'lens_k1' must be in (-1, 1), got {self.lens_k1}")
+
+    @classmethod
+    def from_schema(cls, dynamics: dict | None = None, imaging: dict | None = None) -> "RigidEffects":
+        """From the project's ``effects`` config group (``dynamics`` and ``imaging`` sections)."""
+        d = dict(dynamics or {})
+        i = dict(imaging or {})
+        return cls(drag=float(d.get("air_drag", 0.0)), angular_drag=float(d.get("angular_drag", 0.0)),
+                   magnus=float(d.get("magnus", 0.0)), wind=list(d.get("wind", [0.0, 0.0, 0.0])),
+                   com_offset=list(d.get("com_offset", [0.0, 0.0, 0.0])), lens_k1=float(i.get("lens_k1", 0.0)),
+                   exposure=float(i.get("exposure_s", 0.0)), rolling_shutter=float(i.get("rolling_shutter_s", 0.0)),
+                   time_jitter=float(i.get("time_jitter_s", 0.0)))
 
 
 @dataclass
@@ -109,13 +123,13 @@ class RigidRealityConfig:
 # ----------------------------------------------------------------------------- MuJoCo
 def mujoco_xml(body: BoxBody, effects: RigidEffects) -> str:
     """MJCF of the free body (boxes as geoms, explicit inertial at the true centre of mass)."""
-    fluid = effects.drag > 0 or effects.magnus > 0
+    fluid = effects.drag > 0 or effects.angular_drag > 0 or effects.magnus > 0
     dens = AIR_DENSITY if fluid else 0.0
     visc = AIR_VISCOSITY if fluid else 0.0
     wind = " ".join(f"{w:.9g}" for w in effects.wind)
     # fluidcoef: blunt drag, slender drag, angular drag, Kutta lift, Magnus lift (MuJoCo defaults 0.5 0.25 1.5 1 1)
-    coef = f"{0.5 * effects.drag:.9g} {0.25 * effects.drag:.9g} {1.5 * effects.drag:.9g} {1.0 * effects.drag:.9g} " \
-           f"{1.0 * effects.magnus:.9g}"
+    coef = f"{0.5 * effects.drag:.9g} {0.25 * effects.drag:.9g} {1.5 * effects.angular_drag:.9g} " \
+           f"{1.0 * effects.drag:.9g} {1.0 * effects.magnus:.9g}"
     geoms = []
     for c, h in zip(body.centers, body.half_sizes):
         fl = f' fluidshape="ellipsoid" fluidcoef="{coef}"' if fluid else ""

@@ -72,3 +72,16 @@ def test_truth_is_not_in_meta():
     for key in ("position", "velocity", "omega", "quaternion", "tilt", "roll", "gravity\"", "capture_times"):
         assert key not in flat
     assert "inertia" in th.meta["object"]
+
+
+def test_effects_from_project_schema_and_angular_drag_slows_spin():
+    eff = RigidEffects.from_schema({"air_drag": 1.0, "angular_drag": 2.0, "wind": [1, 0, 0]}, {"exposure_s": 0.01})
+    assert (eff.drag, eff.angular_drag, eff.wind, eff.exposure) == (1.0, 2.0, [1, 0, 0], 0.01)
+    # spin energy decays with rotational drag only (no translation drag)
+    _, q0 = simulate_mujoco(BODY, RigidEffects(), np.zeros(3), Q0, np.zeros(3), 3 * W0, np.linspace(0, 1, 50))
+    _, q1 = simulate_mujoco(BODY, RigidEffects(angular_drag=1.0), np.zeros(3), Q0, np.zeros(3), 3 * W0,
+                            np.linspace(0, 1, 50))
+    ang = lambda a, b: 2 * np.arccos(np.clip(np.abs(np.sum(a * b, -1)), 0, 1))  # noqa: E731
+    turned0 = ang(q0[1:], q0[:-1]).sum()
+    turned1 = ang(q1[1:], q1[:-1]).sum()
+    assert turned1 < 0.99 * turned0
