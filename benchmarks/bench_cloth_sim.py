@@ -166,13 +166,13 @@ def bench_damping() -> None:
     times = np.linspace(0.0, T, 201)
     print("| scheme | mean step [ms] | E_osc(0) [mJ] | change of E_osc per second |")
     print("|---|---|---|---|")
-    for integ, kw in (("fast", {}), ("rk45", {}), ("rk45", {"rtol": 1e-5, "atol_x": 1e-6, "atol_v": 1e-5})):
+    for integ, kw in (("fast", {}), ("rk45", {}), ("rk45", {"rtol": 1e-3, "atol_x": 1e-4, "atol_v": 1e-3})):
         r = simulate(mesh, p0, drv, times, integrator=integ, x0=X, **kw)
         E = np.array([energies(mesh, p0, r.positions[k], r.velocities[k])["total"] for k in range(len(times))])
         osc = E - e_eq
         # linear fit of E_osc(t): slope relative to E_osc(0)
         slope = np.polyfit(times, osc, 1)[0]
-        label = integ + (" (rtol 1e-5)" if kw else " (default tolerances)")
+        label = integ + (" (loose: rtol 1e-3, atol 1e-4 m, 1e-3 m/s)" if kw else " (default tolerances)")
         print(f"| {label} | {1e3 * r.dt:.3f} | {1e3 * osc[0]:.2f} | {100 * slope / osc[0]:+.3f} % /s |")
     # backward Euler for comparison (analytic): energy factor 1/(1 + (h w)^2) per step
     w_swing = np.sqrt(9.81 / (SIZE / 2))  # physical pendulum of the hanging swatch, order of magnitude
