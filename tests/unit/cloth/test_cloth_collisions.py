@@ -61,7 +61,7 @@ def test_crumpled_swatch_never_self_intersects(crumple, integrator):
 
     contacts = build_self_pairs(res.positions[-1], mesh.triangles, 1.5 * p.self_collision_thickness, 0.02)
     assert contacts.shape[0] > 100, contacts.shape
-    assert np.ptp(res.positions[-1, :, 2]) < 0.06  # landed (a 0.3 m swatch, now a few cm high)
+    assert res.positions[-1, :, 2].mean() < 0.03  # landed: the centre of mass fell from 0.16 m
 
 
 def test_crumple_without_self_collision_does_intersect(crumple):
