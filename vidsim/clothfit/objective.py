@@ -1,0 +1,227 @@
+"""The cloth objective: simulate, render stripes, angle maps, metric (seed eqs. 12-16).
+
+For parameters ``theta`` the estimator's simulator (:func:`vidsim.cloth.simulate`, "fast"
+velocity-Verlet at its stable step) moves a swatch whose top corners follow the *measured*
+paths of ``meta.yaml``; every frame is rendered by the fast rasteriser with the *calibrated*
+camera and projector (:func:`vidsim.render.projector.render_stripes_batch`, shadows on); the
+simulated silhouette is where the rasteriser hit the cloth; angle maps come from the same
+filter bank as the footage's; and the error is :func:`vidsim.video.anglemap.cloth_metric`
+(fold term masked by the footage's gradient mask + ``alpha`` x silhouette mismatch, mean per
+frame). A joint objective over several trials sums the per-trial errors (E1 + E2).
+
+A simulation that diverges gives :data:`vidsim.optim.FAILED_SCORE` (finite, huge) with the
+failure text in ``info``: never an exception inside an optimiser, never NaN.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vidsim.cloth import ESTIMATED_NAMES, ClothParams, mid_range_params, simulate
+from vidsim.clothfit.features import ClothFeatures, FeatureSettings, angle_features
+from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
+from vidsim.errors import VidsimError
+from vidsim.optim import FAILED_SCORE
+from vidsim.optim.space import Space
+from vidsim.render.projector import Projector, render_stripes_batch
+from vidsim.video.anglemap import cloth_metric
+from vidsim.video.camera import PinholeCamera
+
+__all__ = ["ObjectiveError", "Trial", "ModelSettings", "EvalResult", "ClothObjective", "space_from_config"]
+
+
+class ObjectiveError(VidsimError):
+    """Inconsistent objective inputs (names the field)."""
+
+
+@dataclass
+class Trial:
+    """One filmed trial as the estimator sees it.
+
+    Attributes:
+        name: label (e.g. ``linen/exp1``).
+        features: footage features of the cloth frames.
+        times: (T,) frame times, seconds.
+        corner_paths: (T, 2, 3) measured corner positions, metres.
+        camera: calibrated camera.
+        projector: calibrated projector with the known stripe pattern.
+        size: swatch side, metres (measured).
+        density: areal density, kg/m^2 (measured).
+    """
+
+    name: str
+    features: ClothFeatures
+    times: np.ndarray
+    corner_paths: np.ndarray
+    camera: PinholeCamera
+    projector: Projector
+    size: float
+    density: float
+
+    def __post_init__(self) -> None:
+        T = self.features.n_frames
+        self.times = np.asarray(self.times, float)
+        self.corner_paths = np.asarray(self.corner_paths, float)
+        if self.times.shape != (T,) or self.corner_paths.shape != (T, 2, 3):
+            raise ObjectiveError(f"trial {self.name}: {T} feature frames but times {self.times.shape} and corner "
+                                 f"paths {self.corner_paths.shape}")
+        if self.features.sil.shape[1:] != (self.camera.height, self.camera.width):
+            raise ObjectiveError(f"trial {self.name}: frames {self.features.sil.shape[1:]} differ from the calibrated "
+                                 f"camera ({self.camera.height}, {self.camera.width})")
+
+    def strided(self, stride: int, max_frames: int = 0) -> "Trial":
+        """Every ``stride``-th frame (and at most ``max_frames``, 0 = all)."""
+        idx = np.arange(0, self.features.n_frames, max(1, int(stride)))
+        if max_frames > 0:
+            idx = idx[:max_frames]
+        return Trial(self.name, self.features.subset(idx), self.times[idx], self.corner_paths[idx], self.camera,
+                     self.projector, self.size, self.density)
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """The estimator's simulator settings (see :class:`vidsim.config.cloth.ClothModelConfig`)."""
+
+    resolution: int = 20
+    settle_s: float = 0.5
+    integrator: str = "fast"
+
+
+@dataclass
+class EvalResult:
+    """One evaluation.
+
+    Attributes:
+        score: total error (sum over trials of the mean per-frame error), or FAILED_SCORE.
+        per_trial: per-trial mean per-frame error.
+        e_fold, e_silh: per-trial (T,) arrays (rad^2, pixels).
+        ok: all simulations completed.
+        failure: failure text or None.
+        timing: seconds spent in ``simulate``, ``render``, ``anglemap``, ``metric``.
+        positions: per-trial (T, N, 3) simulated vertices (only when requested).
+        theta_sim, sil_sim: per-trial simulated angle maps / silhouettes (only when requested).
+    """
+
+    score: float
+    per_trial: list[float]
+    e_fold: list[np.ndarray]
+    e_silh: list[np.ndarray]
+    ok: bool
+    failure: str | None
+    timing: dict[str, float]
+    positions: list[np.ndarray] = field(default_factory=list)
+    theta_sim: list[np.ndarray] = field(default_factory=list)
+    sil_sim: list[np.ndarray] = field(default_factory=list)
+    images: list[np.ndarray] = field(default_factory=list)
+
+
+def space_from_config(space: dict) -> Space:
+    """A :class:`Space` over estimated parameters from ``{name: {lo, hi, log}}``, names checked."""
+    bad = [n for n in space if n not in ESTIMATED_NAMES]
+    if bad:
+        raise ObjectiveError(f"cloth.fit.space: unknown parameter(s) {bad}; expected names from {list(ESTIMATED_NAMES)}")
+    return Space.from_config({k: dict(v) for k, v in space.items()})
+
+
+class ClothObjective:
+    """Error of parameters against one or more trials.
+
+    Args:
+        trials: the trials (their errors are summed).
+        space: the estimated parameters and their box (unit-cube mapping).
+        fixed: values of parameters not in ``space`` (default mid-range), SI.
+        model: simulator settings.
+        features: the angle-map settings used for the footage.
+        alpha: silhouette weight of the metric (rad^2 per pixel).
+    """
+
+    def __init__(self, trials: list[Trial], space: Space, fixed: dict[str, float] | None = None,
+                 model: ModelSettings = ModelSettings(), features: FeatureSettings = FeatureSettings(),
+                 alpha: float = 0.1) -> None:
+        if not trials:
+            raise ObjectiveError("objective needs at least one trial")
+        if model.integrator not in ("fast", "rk45"):
+            raise ObjectiveError(f"cloth.model.integrator must be 'fast' or 'rk45', got {model.integrator!r}")
+        self.trials = trials
+        self.space = space
+        self.model = model
+        self.features = features
+        self.alpha = float(alpha)
+        unknown = set(fixed or {}) - set(ESTIMATED_NAMES)
+        if unknown:
+            raise ObjectiveError(f"cloth.fit.fixed: unknown parameter(s) {sorted(unknown)}")
+        self.fixed = dict(fixed or {})
+        self._rigs = []
+        for tr in trials:
+            mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
+            drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)
+            self._rigs.append((mesh, drv, t0))
+        self.n_evals = 0
+
+    # ------------------------------------------------------------------ parameters
+    def params(self, theta: np.ndarray, density: float) -> ClothParams:
+        """Full :class:`ClothParams` from the estimated vector ``theta`` (space order, SI)."""
+        base = mid_range_params(density=density)
+        kw = {**self.fixed, **self.space.as_dict(theta)}
+        return base.replace(**kw)
+
+    def theta_of(self, params: ClothParams) -> np.ndarray:
+        """The estimated vector of full parameters (space order)."""
+        return np.array([getattr(params, n) for n in self.space.names], float)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, theta: np.ndarray, keep: bool = False) -> EvalResult:
+        """Evaluate physical parameters ``theta`` (space order, SI units).
+
+        Args:
+            theta: (n,) estimated parameters.
+            keep: also return positions, simulated angle maps, silhouettes and images.
+        """
+        timing = {"simulate": 0.0, "render": 0.0, "anglemap": 0.0, "metric": 0.0}
+        per, ef, es = [], [], []
+        out = EvalResult(FAILED_SCORE, per, ef, es, True, None, timing)
+        self.n_evals += 1
+        for tr, (mesh, drv, t0) in zip(self.trials, self._rigs):
+            p = self.params(theta, tr.density)
+            t = time.perf_counter()
+            res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0)
+            timing["simulate"] += time.perf_counter() - t
+            if not res.ok:
+                out.ok, out.failure = False, f"{tr.name}: {res.failure}"
+                return out
+            t = time.perf_counter()
+            img, depth = render_stripes_batch(res.positions, mesh.triangles, tr.camera, tr.projector, shadows=True)
+            sil = np.isfinite(depth)
+            timing["render"] += time.perf_counter() - t
+            t = time.perf_counter()
+            th, _ = angle_features(img, sil, self.features)
+            timing["anglemap"] += time.perf_counter() - t
+            t = time.perf_counter()
+            f = tr.features
+            e, e_fold, e_silh = cloth_metric(f.theta, f.mask, f.sil, th, sil, alpha=self.alpha)
+            timing["metric"] += time.perf_counter() - t
+            per.append(e)
+            ef.append(e_fold)
+            es.append(e_silh)
+            if keep:
+                out.positions.append(res.positions)
+                out.theta_sim.append(th)
+                out.sil_sim.append(sil)
+                out.images.append(img)
+        out.score = float(sum(per))
+        if not np.isfinite(out.score):
+            out.ok, out.failure, out.score = False, "non-finite metric", FAILED_SCORE
+        return out
+
+    def __call__(self, u: np.ndarray) -> tuple[float, dict]:
+        """Objective on the unit cube for the optimisers: ``(score, info)``."""
+        theta = self.space.from_unit(u)
+        r = self.evaluate(theta)
+        info = {"theta": [float(x) for x in theta], "per_trial": r.per_trial,
+                "timing": {k: round(v, 4) for k, v in r.timing.items()}}
+        if not r.ok:
+            info["failure"] = r.failure
+        return r.score, info
