@@ -187,7 +187,12 @@ class ClothObjective:
         for tr, (mesh, drv, t0) in zip(self.trials, self._rigs):
             p = self.params(theta, tr.density)
             t = time.perf_counter()
-            res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0)
+            try:
+                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0)
+            except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
+                timing["simulate"] += time.perf_counter() - t
+                out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"
+                return out
             timing["simulate"] += time.perf_counter() - t
             if not res.ok:
                 out.ok, out.failure = False, f"{tr.name}: {res.failure}"
