@@ -86,3 +86,23 @@ def test_bad_inputs_name_the_field(twin_trial):
         extract_features(np.zeros((6, 8, 8, 3), np.uint8), np.array([0, 1]), fs)
     with pytest.raises(FeatureError, match="period_px"):
         FeatureSettings(period_px=1.0)
+
+
+def test_grid_and_annealing_recover_stretch_and_resume(twin_trial, tmp_path):
+    from vidsim.clothfit.study import fit
+    from vidsim.optim.anneal import AnnealConfig
+
+    tr, fs = twin_trial
+    space = space_from_config({"stretch": {"lo": 20.0, "hi": 4000.0, "log": True}})
+    fixed = {n: getattr(TRUE, n) for n in ("bend", "shear", "bend_damping", "stretch_damping", "shear_damping",
+                                          "drag_linear", "drag_quad", "drag_degrade")}
+    obj = ClothObjective([tr], space, fixed=fixed, model=ModelSettings(resolution=16, settle_s=0.5), features=fs)
+    log = tmp_path / "evals.jsonl"
+    cfg = AnnealConfig(evals_per_T=4, step=0.1)
+    r = fit(obj, grid_params=["stretch"], levels=4, budget=12, anneal_cfg=cfg, cache_path=log)
+    assert abs(np.log(r.theta[0] / TRUE.stretch)) < np.log(2.0), r.theta
+    assert np.all(np.diff(r.best_trace) <= 0)
+    n_before = obj.n_evals
+    r2 = fit(obj, grid_params=["stretch"], levels=4, budget=12, anneal_cfg=cfg, cache_path=log)
+    assert obj.n_evals == n_before  # replayed from the log, no new simulation
+    assert r2.theta[0] == r.theta[0]
