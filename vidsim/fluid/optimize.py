@@ -449,7 +449,8 @@ class Objective:
 
     def __call__(self, v: np.ndarray) -> tuple[float, np.ndarray, dict[str, float]]:
         m = len(self.prob.particles)
-        _, _, errs, gf = self.trace(v, True)
+        _, codes, errs, gf = self.trace(v, True)
+        self.last_fraction = fraction_in_desired_sink(codes, self.prob.desired)
         ef = float(errs.sum()) / m
         es, gs = smoothness(v)
         if self.index is not None and self.gamma > 0:
@@ -473,7 +474,8 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
     """Adaptive gradient descent (eq. 31-32) from ``init`` (``(H, W, 2)``).
 
     Each iteration moves the node with the largest gradient by ``step`` nodes/frame; the step
-    grows by 1.2 after an accepted (lower) objective and halves after a rejected one.
+    grows by 1.2 after an accepted step and halves after a rejected one. A step is accepted
+    when the objective decreases and the share of particles in their desired sink does not.
     """
     t0 = time.perf_counter()
     obj = Objective(prob, index, alpha, beta, gamma, trace_step)
@@ -482,6 +484,7 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
     v0 = v.copy()
     _, codes0, _, _ = obj.trace(v)
     e, g, parts = obj(v)
+    frac = obj.last_fraction
     ok = bool(np.isfinite(e) and np.isfinite(g).all())
     hist = [e]
     it = 0
@@ -495,8 +498,10 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
         if not (np.isfinite(en_) and np.isfinite(gn_).all()):
             step *= 0.5
             continue
-        if en_ < e:
-            v, e, g, parts = vn, en_, gn_, pn
+        # accept a lower objective only if no particle is lost from its desired sink: the
+        # smoothness and neighbourhood terms may not buy their decrease with flow conservation
+        if en_ < e and obj.last_fraction >= frac:
+            v, e, g, parts, frac = vn, en_, gn_, pn, obj.last_fraction
             hist.append(e)
             step *= 1.2
         else:
