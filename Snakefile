@@ -17,6 +17,8 @@ include: "workflow/rules/demo.smk"
 include: "workflow/rules/rigid.smk"
 include: "workflow/rules/cloth.smk"
 include: "workflow/rules/fluid.smk"
+include: "workflow/rules/posterior.smk"
+include: "workflow/rules/gap.smk"
 
 
 rule all:

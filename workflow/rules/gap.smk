@@ -1,0 +1,1 @@
+# sim-to-real gap stages (wired in this file only; see workflow/rules/demo.smk for the pattern).
