@@ -51,7 +51,20 @@ class EvalCache:
         self._fh = None
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._drop_torn_tail(self.path)
             self._fh = open(self.path, "a")
+
+    @staticmethod
+    def _drop_torn_tail(path: Path) -> None:
+        """Cut a torn last line (a kill mid-write) so the next record starts on its own line."""
+        if not path.is_file():
+            return
+        data = path.read_bytes()
+        if data and not data.endswith(b"\n"):
+            with open(path, "r+b") as fh:
+                fh.truncate(data.rfind(b"\n") + 1)
+                fh.flush()
+                os.fsync(fh.fileno())
 
     def __len__(self) -> int:
         return len(self.store)
