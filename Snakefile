@@ -19,6 +19,7 @@ include: "workflow/rules/cloth.smk"
 include: "workflow/rules/fluid.smk"
 include: "workflow/rules/posterior.smk"
 include: "workflow/rules/gap.smk"
+include: "workflow/rules/sweep.smk"
 
 
 rule all:

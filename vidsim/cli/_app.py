@@ -67,6 +67,13 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
             raise
 
     def _entry() -> None:
+        args = sys.argv[1:]
+        if not any(a.startswith("hydra.job.name=") for a in args):
+            # names the sweep folder (${paths.results}/sweeps/<stage>) and Hydra's logs
+            sys.argv.append(f"hydra.job.name={name}")
+        if any(a in ("-m", "--multirun") for a in args) and not any(a.startswith("paths.out=") for a in args):
+            # a sweep: each point writes its outputs to its own folder, named by its overrides
+            sys.argv.append(f"paths.out=${{paths.results}}/sweeps/{name}/${{hydra:job.override_dirname}}")
         _precheck_overrides(name, sys.argv[1:])
         _main()
 

@@ -36,3 +36,21 @@ def get_out_dir(wildcards, output):
 
 
 CONDA_ENV = "../../env.yml"
+
+
+def paramspace_overrides(space):
+    """A params function: the Hydra overrides (``key=value ...``) of a Paramspace point.
+
+    Table columns name Hydra keys with "__" for "." (column names become wildcard names, which
+    must be identifiers): ``calibrate__n_views`` -> ``calibrate.n_views``.
+    """
+
+    def overrides(wildcards):
+        return " ".join(f"{k.replace('__', '.')}={v}" for k, v in space.instance(wildcards).items())
+
+    return overrides
+
+
+def sweep_point_dirs(wildcards, input):
+    """The folders of a sweep's points (the parents of the collected summaries)."""
+    return " ".join(str(Path(p).parent) for p in input.points)
