@@ -47,7 +47,7 @@ def test_cluster_generic_executor_runs_jobs_as_separate_processes(tmp_path, shar
     env = _env()
     env["VIDSIM_CLUSTER_LOGS"] = str(logs)
     cfg = tmp_path / "only_chessboard.yaml"
-    cfg.write_text(f"results: {res}\nshared_data: {shared_data}\nstages: {{calibration_chessboard: true, demo: false}}\n")
+    cfg.write_text(f"results: {res}\nshared_data: {shared_data}\nstages: {{calibration_chessboard: true, demo: false, sweep_calibration: false}}\n")
     r = subprocess.run(
         [*SNAKEMAKE, "--profile", "workflow/profiles/cluster-local", "--configfile", str(cfg)],
         cwd=REPO_ROOT, capture_output=True, text=True, env=env, timeout=600,
