@@ -106,6 +106,8 @@ CASES = [
     ("NaN config value", _nothing, ["camera.fx=nan"], "camera.fx = nan"),
     ("negative config value", _nothing, ["render.noise_sigma=-1"], "render.noise_sigma = -1"),
     ("path escaping results", _nothing, ["paths.out=../../outside"], "escapes the results folder"),
+    ("negative stiffness", _nothing, ["cloth.reality.twin_params.stretch=-300"], "cloth.reality.twin_params.stretch = -300"),
+    ("NaN in a cloth parameter", _nothing, ["cloth.reality.twin_params.bend=nan"], "cloth.reality.twin_params.bend = nan"),
     ("missing footage folder", None, [], "footage folder is missing"),
 ]
 

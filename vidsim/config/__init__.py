@@ -64,7 +64,25 @@ def validate(cfg: DictConfig) -> None:
     for k in ("exposure_s", "rolling_shutter_s", "time_jitter_s"):
         _check(_finite(im[k]) and im[k] >= 0, f"effects.imaging.{k}", im[k], ">= 0 s")
     _check(cfg.calibrate.n_views >= 3, "calibrate.n_views", cfg.calibrate.n_views, ">= 3 views")
+    _validate_cloth_params(cfg)
     _check(cfg.calibrate.n_projector_views >= 3, "calibrate.n_projector_views", cfg.calibrate.n_projector_views, ">= 3 views")
+
+
+def _validate_cloth_params(cfg: DictConfig) -> None:
+    """The cloth twin's known parameters: finite and non-negative, each named by its key."""
+    tp = OmegaConf.select(cfg, "cloth.reality.twin_params")
+    if tp is None:
+        return
+    from vidsim.cloth.params import PARAM_UNITS, ClothParams
+
+    for k, v in tp.items():
+        where = f"cloth.reality.twin_params.{k}"
+        _check(k in PARAM_UNITS, where, k, f"one of {sorted(PARAM_UNITS)}")
+        _check(isinstance(v, (int, float)) and _finite(v) and v >= 0, where, v, f">= 0 [{PARAM_UNITS[k]}]")
+    try:
+        ClothParams(**{k: v for k, v in tp.items() if k != "gravity"})
+    except ValueError as e:
+        raise ConfigError(f"cloth.reality.twin_params: {e}") from None
 
 
 def camera_from_config(c: DictConfig | Any) -> PinholeCamera:
