@@ -30,7 +30,7 @@ rule calibrate_sweep_point:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,
+        mem_mb=600,  # measured peak RSS 287 MB
         runtime=5,
     shell:
         "python -m vidsim.cli.calibrate {params.point} paths.out={params.out} {params.extra} > {log} 2>&1"
