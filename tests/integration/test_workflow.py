@@ -13,6 +13,13 @@ import pytest
 from vidsim.io.paths import REPO_ROOT
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
+FAMILIES = ("calibration_chessboard", "demo", "sweep_calibration", "rigid", "cloth", "fluid", "posterior", "gap")
+
+
+def only(*on: str) -> str:
+    """A `stages:` mapping with only these families on (--configfile merges into quick.yaml key by key)."""
+    return "{" + ", ".join(f"{f}: {'true' if f in on else 'false'}" for f in FAMILIES) + "}"
+
 
 
 def _env() -> dict:
@@ -47,7 +54,7 @@ def test_cluster_generic_executor_runs_jobs_as_separate_processes(tmp_path, shar
     env = _env()
     env["VIDSIM_CLUSTER_LOGS"] = str(logs)
     cfg = tmp_path / "only_chessboard.yaml"
-    cfg.write_text(f"results: {res}\nshared_data: {shared_data}\nstages: {{calibration_chessboard: true, demo: false, sweep_calibration: false}}\n")
+    cfg.write_text(f"results: {res}\nshared_data: {shared_data}\nstages: {only('calibration_chessboard')}\n")
     r = subprocess.run(
         [*SNAKEMAKE, "--profile", "workflow/profiles/cluster-local", "--configfile", str(cfg)],
         cwd=REPO_ROOT, capture_output=True, text=True, env=env, timeout=600,
@@ -85,7 +92,8 @@ def _planned_jobs(out: str) -> set[str]:
 @pytest.mark.slow
 def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_data):
     res = tmp_path / "results"
-    base = f"results: {res}\nshared_data: {shared_data}\nhydra_overrides: 'log.rerun=false'\n"
+    base = (f"results: {res}\nshared_data: {shared_data}\nhydra_overrides: 'log.rerun=false'\n"
+            f"stages: {only('calibration_chessboard', 'demo')}\n")
     cfg = tmp_path / "a.yaml"
     cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: ''}\n")
     r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--cores", "2")
