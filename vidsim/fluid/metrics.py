@@ -20,6 +20,14 @@ def rendered_flow_epe(frames: np.ndarray, edited_field: np.ndarray, border: int 
     """Average endpoint error (px/frame) between the flow of ``frames`` (T,H,W,3) uint8 and
     ``edited_field`` (H,W,2) or (T-1,H,W,2), ignoring ``border`` pixels at the frame edge and,
     if given, pixels where ``mask`` (H,W) is False."""
+    return float(rendered_flow_epe_frames(frames, edited_field, border, mask).mean())
+
+
+def rendered_flow_epe_frames(frames: np.ndarray, edited_field: np.ndarray, border: int = 8,
+                             mask: np.ndarray | None = None) -> np.ndarray:
+    """Per frame pair: ``(T-1,)`` average endpoint error (px/frame) of the rendered frames' flow
+    against the edited field (same mask in every pair, so their mean is
+    :func:`rendered_flow_epe`)."""
     fl = estimate_flow(frames)
     ef = np.broadcast_to(np.asarray(edited_field, np.float64)[-fl.shape[0]:] if np.ndim(edited_field) == 4
                          else edited_field, fl.shape)
@@ -27,7 +35,7 @@ def rendered_flow_epe(frames: np.ndarray, edited_field: np.ndarray, border: int 
     m[border:fl.shape[1] - border, border:fl.shape[2] - border] = True
     if mask is not None:
         m &= mask
-    return endpoint_error(fl, ef, np.broadcast_to(m, fl.shape[:3]))
+    return np.array([endpoint_error(fl[i], ef[i], m) for i in range(fl.shape[0])])
 
 
 def _patches_at(frames: np.ndarray, t: np.ndarray, y: np.ndarray, x: np.ndarray, p: int) -> np.ndarray:

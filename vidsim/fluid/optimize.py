@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -470,12 +470,18 @@ def fraction_in_desired_sink(codes: np.ndarray, desired: np.ndarray) -> float:
 
 def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None, alpha: float = 1.0,
                    beta: float = 0.2, gamma: float = 0.2, iterations: int = 150, step: float = 0.5,
-                   trace_step: float = 0.5) -> EditResult:
+                   trace_step: float = 0.5, resume: dict[str, Any] | None = None,
+                   on_iter: Callable[[int, dict[str, Any]], None] | None = None) -> EditResult:
     """Adaptive gradient descent (eq. 31-32) from ``init`` (``(H, W, 2)``).
 
     Each iteration moves the node with the largest gradient by ``step`` nodes/frame; the step
     grows by 1.2 after an accepted step and halves after a rejected one. A step is accepted
     when the objective decreases and the share of particles in their desired sink does not.
+
+    Checkpointing: after every iteration ``on_iter(it, state)`` receives the whole optimiser
+    state (``v`` (H,W,2), ``step``, ``it``, ``hist``); everything else is a deterministic
+    function of it, so ``resume=state`` continues a killed run to the bit-identical result of
+    an uninterrupted one.
     """
     t0 = time.perf_counter()
     obj = Objective(prob, index, alpha, beta, gamma, trace_step)
@@ -483,11 +489,18 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
     v[prob.fixed] = prob.fixed_value[prob.fixed]
     v0 = v.copy()
     _, codes0, _, _ = obj.trace(v)
+    it = 0
+    hist: list[float] = []
+    if resume is not None:
+        rv = np.asarray(resume["v"], dtype=np.float64)
+        if rv.shape != v.shape:
+            raise ValueError(f"resume state field shape {rv.shape}, expected {v.shape} (a checkpoint of another edit)")
+        v, step, it, hist = rv.copy(), float(resume["step"]), int(resume["it"]), [float(x) for x in resume["hist"]]
     e, g, parts = obj(v)
     frac = obj.last_fraction
     ok = bool(np.isfinite(e) and np.isfinite(g).all())
-    hist = [e]
-    it = 0
+    if not hist:
+        hist = [e]
     while ok and it < iterations and step > 1e-5:
         it += 1
         gmax = np.abs(g).max()
@@ -497,6 +510,8 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
         en_, gn_, pn = obj(vn)
         if not (np.isfinite(en_) and np.isfinite(gn_).all()):
             step *= 0.5
+            if on_iter is not None:
+                on_iter(it, {"v": v, "step": step, "it": it, "hist": np.array(hist)})
             continue
         # accept a lower objective only if no particle is lost from its desired sink: the
         # smoothness and neighbourhood terms may not buy their decrease with flow conservation
@@ -506,6 +521,8 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
             step *= 1.2
         else:
             step *= 0.5
+        if on_iter is not None:
+            on_iter(it, {"v": v, "step": step, "it": it, "hist": np.array(hist)})
     exits, codes, _, _ = obj.trace(v)
     figs = {"fraction_in_desired_sink": fraction_in_desired_sink(codes, prob.desired),
             "fraction_in_desired_sink_init": fraction_in_desired_sink(codes0, prob.desired),
@@ -515,7 +532,8 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
 
 
 def edit_field(video_field: np.ndarray, spec: EditSpec, video_fields: np.ndarray | None = None,
-               init: np.ndarray | None = None) -> EditResult:
+               init: np.ndarray | None = None, resume: dict[str, Any] | None = None,
+               on_iter: Callable[[int, dict[str, Any]], None] | None = None) -> EditResult:
     """Stage driver: optimise the edited field for ``spec``.
 
     Args:
@@ -524,6 +542,7 @@ def edit_field(video_field: np.ndarray, spec: EditSpec, video_fields: np.ndarray
         spec: the validated edit.
         video_fields: optional ``(F, H, W, 2)`` more video frames for the neighbourhood index.
         init: optional explicit initial field (overrides ``spec.optimizer.init``).
+        resume, on_iter: checkpoint state and per-iteration callback (see :func:`optimize_field`).
 
     Returns:
         :class:`EditResult` with the measured figures (fraction of particles in their desired
@@ -547,6 +566,6 @@ def edit_field(video_field: np.ndarray, spec: EditSpec, video_fields: np.ndarray
             init = np.broadcast_to(np.array(o.uniform, float), vf.shape).copy()
     t_init = time.perf_counter() - t0
     res = optimize_field(prob, init, index, spec.weights.flow, spec.weights.smooth, spec.weights.neighborhood,
-                         o.iterations, o.step, o.trace_step)
+                         o.iterations, o.step, o.trace_step, resume=resume, on_iter=on_iter)
     res.figures["init_time_s"] = t_init
     return res

@@ -8,14 +8,14 @@ No file I/O here; reading footage and writing results belong to ``vidsim.io`` / 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
 
 from vidsim.fluid.edit import EditSpec
 from vidsim.fluid.flow import FlowMethod, estimate_flow
-from vidsim.fluid.metrics import flicker, patch_distance_ratio, rendered_flow_epe, static_mask
+from vidsim.fluid.metrics import flicker, patch_distance_ratio, rendered_flow_epe_frames, static_mask
 from vidsim.fluid.optimize import EditResult, edit_field
 from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
 
@@ -48,7 +48,9 @@ def video_fields(flow: np.ndarray, spec: EditSpec) -> np.ndarray:
 
 def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n_frames: int | None = None,
              method: FlowMethod = "dis_fine", temporal_sigma: float = 1.0,
-             flow: np.ndarray | None = None) -> dict[str, Any]:
+             flow: np.ndarray | None = None, resume: dict[str, Any] | None = None,
+             on_iter: Callable[[int, dict[str, Any]], None] | None = None,
+             on_frame: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Flow -> edit -> render -> measure, for one edit.
 
     Args:
@@ -58,19 +60,22 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
         n_frames: output frames (default ``spec.render.frames``).
         method, temporal_sigma: optical-flow settings (see :func:`estimate_flow`).
         flow: precomputed flow of ``src_frames`` (skips the estimate).
+        resume, on_iter: optimiser checkpoint state and per-iteration callback
+            (:func:`vidsim.fluid.optimize.optimize_field`).
+        on_frame: per-output-frame callback of the renderer (progress).
 
     Returns:
         dict with ``frames`` (n,H',W',3) uint8, ``edited_field_px`` (H',W',2), ``edit``
         (:class:`EditResult`), ``source_flow`` and ``figures`` (flow-conservation fraction,
         rendered-flow EPE in px/frame, patch-distance ratio, flicker of output and source in
-        grey levels, timings).
+        grey levels, timings) and ``epe_frames`` (n-1,) the rendered-flow EPE per frame pair.
     """
     n = spec.render.frames if n_frames is None else n_frames
     if flow is None:
         flow = estimate_flow(src_frames, method=method, temporal_sigma=temporal_sigma)
     g = video_fields(flow, spec)
     step = max(1, g.shape[0] // 12)
-    res: EditResult = edit_field(g.mean(0), spec, g[::step])
+    res: EditResult = edit_field(g.mean(0), spec, g[::step], resume=resume, on_iter=on_iter)
     ds = spec.downsample
     H, W = spec.height * ds, spec.width * ds
     field_px = upsample_field(res.field, ds, (H, W))
@@ -78,9 +83,10 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     field_px[solid_px] = 0.0
     # the edit was optimised against the time-mean flow: match velocity patches on it too
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
-                                match_flow=flow[:, :H, :W].mean(0))
+                                match_flow=flow[:, :H, :W].mean(0), on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig}
-    figs["rendered_flow_epe_px"] = rendered_flow_epe(out, field_px, border=spec.render.patch)
+    epe_frames = rendered_flow_epe_frames(out, field_px, border=spec.render.patch)
+    figs["rendered_flow_epe_px"] = float(epe_frames.mean())
     figs["edited_speed_mean_px"] = float(np.linalg.norm(field_px, axis=-1).mean())
     figs["patch_distance"] = patch_distance_ratio(out, src_frames[:, :H, :W], rng=rng)
     st_out = static_mask(field_px)
@@ -89,4 +95,5 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     figs["flicker_source"] = flicker(src_frames[:, :H, :W], st_src) if st_src.any() else float("nan")
     figs["static_fraction_output"] = float(st_out.mean())
     figs["static_fraction_source"] = float(st_src.mean())
-    return {"frames": out, "edited_field_px": field_px, "edit": res, "source_flow": flow, "figures": figs}
+    return {"frames": out, "edited_field_px": field_px, "edit": res, "source_flow": flow, "figures": figs,
+            "epe_frames": epe_frames}

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
@@ -236,7 +236,8 @@ class PatchSelector:
 def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: np.ndarray, n_frames: int,
                     rng: np.random.Generator, settings: RenderSettings | None = None,
                     solid: np.ndarray | None = None, color_weight: float = 0.1,
-                    match_flow: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+                    match_flow: np.ndarray | None = None,
+                    on_frame: Callable[[int], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Render ``n_frames`` of the edited field by texture transfer from the source video.
 
     Args:
@@ -249,6 +250,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         settings: patch size, overlap, K, mode; defaults of :class:`RenderSettings`.
         solid: optional ``(H, W)`` obstacle mask of the output (patches are not spawned
             centred inside it; they still get colour there from zero-velocity source patches).
+        on_frame: optional callback ``on_frame(n)`` after output frame ``n`` (progress lines).
 
     Returns:
         ``(n_frames, H, W, 3)`` uint8 frames and figures: ``time_per_frame_s``,
@@ -368,6 +370,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         img = acc / np.maximum(wsum, 1e-9)[..., None]
         out[n] = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
         n_live.append(len(P.cx))
+        if on_frame is not None:
+            on_frame(n)
     dt = time.perf_counter() - t0
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
             "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "mode": s.mode,
