@@ -5,12 +5,14 @@ Pure functions returning arrays; writing them (PNG, Rerun, YAML) is the caller's
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import cv2
 import numpy as np
 
-from vidsim.rigid.body import BoxBody
-from vidsim.rigid.dynamics import quat_to_rot, simulate
-from vidsim.rigid.fit import FitResult
+from vidsim.rigid.body import BoxBody, RigidBodyError
+from vidsim.rigid.dynamics import N_PARAM, PARAM_NAMES, gravity_vector, quat_to_rot, simulate
+from vidsim.rigid.fit import Candidate, FitResult
 from vidsim.rigid.silhouette import render_coverage
 from vidsim.video.camera import PinholeCamera
 
@@ -43,3 +45,162 @@ def corner_paths(states: np.ndarray, body: BoxBody) -> np.ndarray:
     """(T, 8B, 3) world paths of every box corner (the seed tracks a corner to show the match)."""
     V = body.box_vertices().reshape(-1, 3)
     return np.stack([V @ quat_to_rot(s[3:7]).T + s[0:3] for s in states])
+
+
+# ----------------------------------------------------------------------------- fit.yaml / masks.npz
+FIT_FORMAT = "vidsim.rigid.fit/1"
+"""Value of ``format`` in a ``fit.yaml`` written from :func:`fit_to_dict`."""
+
+MASKS_FORMAT_DOC = """masks.npz of the segment stage: ``masks`` (N, H, W) bool silhouettes of every
+footage frame (True = object), ``times`` (N,) float64 frame times in seconds (the footage's)."""
+
+
+def _candidate_to_dict(c: Candidate) -> dict:
+    return {
+        "start": int(c.start),
+        "position": c.params[0:3].tolist(),
+        "quaternion": c.q_base.tolist(),
+        "velocity": c.params[6:9].tolist(),
+        "omega_world": c.params[9:12].tolist(),
+        "tilt": float(c.params[12]),
+        "roll": float(c.params[13]),
+        "params": c.params.tolist(),
+        "cost": float(c.cost),
+        "mean_iou": float(c.mean_iou),
+        "iou": np.asarray(c.iou, float).tolist(),
+        "history": [float(h) for h in c.history],
+    }
+
+
+def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
+    """Plain (YAML-safe) dictionary of a fit: named parameters first, everything to rebuild it.
+
+    Keys: ``format``; the named estimate at time ``t0`` (``position`` m, ``quaternion`` (w,x,y,z)
+    body -> world, ``velocity`` m/s, ``omega_world`` rad/s, ``tilt``/``roll`` rad,
+    ``gravity_direction`` unit (3,) in the camera-defined world frame); ``mean_iou``, ``iou`` (T,),
+    ``ambiguous``, ``distinct_alternatives``; ``params`` (14,) raw vector (:data:`PARAM_NAMES`);
+    ``times`` (T,) s, ``frames`` (T,) footage indices, ``states`` (T, 13); ``history``;
+    ``alternatives`` (list of candidates, best first), ``seconds``, ``n_starts``; ``object`` (the
+    body's ``meta.yaml`` description, so a reader can rebuild it with ``BoxBody.from_meta``).
+
+    Args:
+        res: the estimate.
+        body: the body it was fitted with.
+
+    Returns:
+        dictionary; :func:`fit_from_dict` inverts it exactly (floats survive YAML by repr).
+    """
+    g = gravity_vector(float(res.params[12]), float(res.params[13]), 1.0)
+    return {
+        "format": FIT_FORMAT,
+        "t0": float(res.t0),
+        "position": res.params[0:3].tolist(),
+        "quaternion": np.asarray(res.q0, float).tolist(),
+        "velocity": res.params[6:9].tolist(),
+        "omega_world": res.params[9:12].tolist(),
+        "tilt": float(res.params[12]),
+        "roll": float(res.params[13]),
+        "gravity_direction": g.tolist(),
+        "mean_iou": float(res.mean_iou),
+        "iou": np.asarray(res.iou, float).tolist(),
+        "ambiguous": bool(res.ambiguous),
+        "distinct_alternatives": [int(i) for i in res.distinct],
+        "param_names": list(PARAM_NAMES),
+        "params": np.asarray(res.params, float).tolist(),
+        "times": np.asarray(res.times, float).tolist(),
+        "frames": [int(i) for i in res.frames],
+        "states": np.asarray(res.states, float).tolist(),
+        "history": [float(h) for h in res.history],
+        "seconds": float(res.seconds),
+        "n_starts": int(res.n_starts),
+        "alternatives": [_candidate_to_dict(c) for c in res.alternatives],
+        "object": body.to_meta(),
+    }
+
+
+def _arr(d: dict, key: str, shape: tuple, where: str) -> np.ndarray:
+    if key not in d:
+        raise RigidBodyError(f"{where}: missing field '{key}'")
+    try:
+        a = np.asarray(d[key], float)
+    except (TypeError, ValueError) as e:
+        raise RigidBodyError(f"{where}: field '{key}' is not numeric ({e})") from e
+    if a.ndim == 1 and len(shape) == 2 and a.size == 0:
+        a = a.reshape(0, shape[1])
+    if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+        raise RigidBodyError(f"{where}: field '{key}' has shape {a.shape}, expected {shape}")
+    if not np.all(np.isfinite(a)):
+        raise RigidBodyError(f"{where}: field '{key}' has non-finite values")
+    return a
+
+
+def fit_from_dict(d: dict, where: str = "fit.yaml") -> FitResult:
+    """Rebuild a :class:`FitResult` from :func:`fit_to_dict`'s dictionary (e.g. a loaded fit.yaml).
+
+    Args:
+        d: the dictionary.
+        where: name used in error messages.
+
+    Returns:
+        the fit (the body is ``BoxBody.from_meta(d['object'])``).
+
+    Raises:
+        RigidBodyError: a field is missing or malformed (the message names it).
+    """
+    if not isinstance(d, dict):
+        raise RigidBodyError(f"{where}: expected a mapping, got {type(d).__name__}")
+    if d.get("format", FIT_FORMAT) != FIT_FORMAT:
+        raise RigidBodyError(f"{where}: 'format' is {d.get('format')!r}, expected {FIT_FORMAT!r}")
+    params = _arr(d, "params", (N_PARAM,), where)
+    q0 = _arr(d, "quaternion", (4,), where)
+    times = _arr(d, "times", (None,), where)
+    T = len(times)
+    states = _arr(d, "states", (T, 13), where)
+    iou = _arr(d, "iou", (T,), where)
+    frames = np.asarray(_arr(d, "frames", (T,), where), np.int64)
+    alts = []
+    for k, c in enumerate(d.get("alternatives", [])):
+        w = f"{where}: alternatives[{k}]"
+        if not isinstance(c, dict):
+            raise RigidBodyError(f"{w}: expected a mapping")
+        alts.append(Candidate(_arr(c, "params", (N_PARAM,), w), _arr(c, "quaternion", (4,), w),
+                              float(c.get("cost", np.nan)), float(c.get("mean_iou", np.nan)),
+                              _arr(c, "iou", (None,), w), [float(h) for h in c.get("history", [])],
+                              int(c.get("start", -1))))
+    for key in ("t0", "mean_iou"):
+        if key not in d:
+            raise RigidBodyError(f"{where}: missing field '{key}'")
+    return FitResult(params, q0, float(d["t0"]), times, frames, states, iou, float(d["mean_iou"]),
+                     [float(h) for h in d.get("history", [])], alts, bool(d.get("ambiguous", False)),
+                     float(d.get("seconds", 0.0)), int(d.get("n_starts", 0)),
+                     [int(i) for i in d.get("distinct_alternatives", [])])
+
+
+def check_masks(masks: np.ndarray, times: np.ndarray, where: str = "masks.npz") -> tuple[np.ndarray, np.ndarray]:
+    """Validate the segment stage's arrays (see :data:`MASKS_FORMAT_DOC`).
+
+    Args:
+        masks: (N, H, W) silhouettes (any dtype; nonzero = object).
+        times: (N,) frame times, seconds, strictly increasing.
+        where: name used in error messages.
+
+    Returns:
+        (masks as bool (N, H, W), times as float64 (N,)).
+    """
+    m = np.asarray(masks)
+    t = np.asarray(times, float)
+    if m.ndim != 3:
+        raise RigidBodyError(f"{where}: 'masks' must be (N, H, W), got shape {m.shape}")
+    if t.shape != (m.shape[0],):
+        raise RigidBodyError(f"{where}: 'times' must be ({m.shape[0]},) to match 'masks', got {t.shape}")
+    if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise RigidBodyError(f"{where}: 'times' must be finite and strictly increasing")
+    return m.astype(bool), t
+
+
+def masks_from_npz(npz: Mapping[str, np.ndarray], where: str = "masks.npz") -> tuple[np.ndarray, np.ndarray]:
+    """(masks, times) from a loaded masks.npz mapping (``np.load(path)``), validated."""
+    for key in ("masks", "times"):
+        if key not in npz:
+            raise RigidBodyError(f"{where}: missing array '{key}' (has {sorted(npz.keys())})")
+    return check_masks(npz["masks"], npz["times"], where)
