@@ -27,6 +27,7 @@ from scipy.optimize import minimize
 
 from vidsim.rigid.body import BoxBody, RigidBodyError
 from vidsim.rigid.dynamics import (
+    G_EARTH,
     N_PARAM,
     pose_tangent_jacobian,
     quat_exp,
@@ -82,6 +83,7 @@ class FitConfig:
             by more than this at any fitted frame, degrees.
         tie_iou: and "equally good" when their mean IoUs differ by less than this.
         dist_scale: distance normaliser of the smoothed term, full-resolution pixels.
+        gravity: known gravity magnitude, m/s^2 (the footage's ``meta.gravity_magnitude``).
     """
 
     screen: list[Stage] = field(default_factory=lambda: [
@@ -96,6 +98,7 @@ class FitConfig:
     distinct_deg: float = 10.0
     tie_iou: float = 0.01
     dist_scale: float = 20.0
+    gravity: float = G_EARTH
 
     @classmethod
     def from_dict(cls, d: dict | None) -> "FitConfig":
@@ -113,6 +116,8 @@ class FitConfig:
             raise RigidBodyError(f"fit config: 'screen_keep' {cfg.screen_keep} needs one count >= 1 per screen stage")
         if cfg.multistart not in ("icosahedral", "none"):
             raise RigidBodyError(f"fit config: 'multistart' must be 'icosahedral' or 'none', got {cfg.multistart!r}")
+        if not (np.isfinite(cfg.gravity) and cfg.gravity > 0):
+            raise RigidBodyError(f"fit config: 'gravity' must be a finite magnitude > 0 m/s^2, got {cfg.gravity}")
         return cfg
 
 
@@ -157,6 +162,7 @@ class FitResult:
         seconds: wall time of the whole estimation.
         n_starts: number of starts screened.
         distinct: indices into ``alternatives`` of the distinct, equally good solutions.
+        gravity: gravity magnitude the fit assumed, m/s^2; hmax: its RK4 step bound, seconds.
     """
 
     params: np.ndarray
@@ -173,6 +179,8 @@ class FitResult:
     seconds: float
     n_starts: int
     distinct: list[int] = field(default_factory=list)
+    gravity: float = G_EARTH
+    hmax: float = 1.0 / 60.0
 
     def summary(self) -> dict:
         """Plain dictionary (YAML friendly) of the estimate."""
@@ -210,11 +218,13 @@ class SilhouetteObjective:
         lam: distance-term strength; ramp: anti-aliasing ramp (pixels at this level).
         dist_scale: distance normaliser, full-resolution pixels.
         hmax: RK4 step bound, seconds.
+        g: gravity magnitude, m/s^2.
     """
 
     def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, masks: np.ndarray, t0: float,
                  scale: float = 1.0, lam: float = 0.0, ramp: float = 1.0, dist_scale: float = 20.0,
-                 hmax: float = 1.0 / 60.0) -> None:
+                 hmax: float = 1.0 / 60.0, g: float = G_EARTH) -> None:
+        self.g = float(g)
         self.body = body
         self.cam = cam if scale == 1.0 else cam.scaled(scale)
         self.times = np.asarray(times, float)
@@ -232,7 +242,7 @@ class SilhouetteObjective:
     def __call__(self, p: np.ndarray, q_base: np.ndarray, grad: bool = True) -> tuple[float, np.ndarray, bool]:
         """Objective (mean per frame, full-resolution pixels), its gradient (14,) and an ok flag."""
         self.n_evals += 1
-        tr = simulate(p, q_base, self.body.inertia, self.times, self.t0, self.hmax, sensitivities=grad)
+        tr = simulate(p, q_base, self.body.inertia, self.times, self.t0, self.hmax, sensitivities=grad, g=self.g)
         if not tr.ok:
             return FAIL_COST, np.zeros(N_PARAM), False
         X = tr.states[:, 0:3]
@@ -253,9 +263,9 @@ class SilhouetteObjective:
 
 
 def silhouette_iou(p: np.ndarray, q_base: np.ndarray, body: BoxBody, cam: PinholeCamera, times: np.ndarray,
-                   t0: float, masks: np.ndarray, hmax: float = 1.0 / 60.0) -> np.ndarray:
+                   t0: float, masks: np.ndarray, hmax: float = 1.0 / 60.0, g: float = G_EARTH) -> np.ndarray:
     """Per-frame IoU (T,) of the simulated hard silhouettes against ``masks`` (T, H, W) bool."""
-    tr = simulate(p, q_base, body.inertia, times, t0, hmax, sensitivities=False)
+    tr = simulate(p, q_base, body.inertia, times, t0, hmax, sensitivities=False, g=g)
     if not tr.ok:
         return np.zeros(len(times))
     sim = render_coverage(tr.states[:, 0:3], tr.states[:, 3:7], body.box_vertices(), cam) > 0.5
@@ -336,19 +346,20 @@ def start_orientations(R_guess: np.ndarray, symmetries: np.ndarray, mode: str = 
 
 
 def distinct_alternatives(best: Candidate, alts: list[Candidate], body: BoxBody, times: np.ndarray, t0: float,
-                          tie_iou: float = 0.01, distinct_deg: float = 10.0, hmax: float = 1.0 / 60.0) -> list[int]:
+                          tie_iou: float = 0.01, distinct_deg: float = 10.0, hmax: float = 1.0 / 60.0,
+                          g: float = G_EARTH) -> list[int]:
     """Indices of ``alts`` that explain the silhouettes as well as ``best`` but move differently.
 
     A candidate ties when its mean IoU is within ``tie_iou`` of the best, and is distinct when its
     orientation differs from the best's by more than ``distinct_deg`` (modulo the body's
     symmetries) at some frame time. Such a pair is the seed's "two solutions" (Figure 2, row c).
     """
-    tr_best = simulate(best.params, best.q_base, body.inertia, times, t0, hmax, sensitivities=False)
+    tr_best = simulate(best.params, best.q_base, body.inertia, times, t0, hmax, sensitivities=False, g=g)
     out = []
     for i, c in enumerate(alts):
         if best.mean_iou - c.mean_iou > tie_iou:
             continue
-        tr_c = simulate(c.params, c.q_base, body.inertia, times, t0, hmax, sensitivities=False)
+        tr_c = simulate(c.params, c.q_base, body.inertia, times, t0, hmax, sensitivities=False, g=g)
         if not (tr_c.ok and tr_best.ok):
             continue
         d = max(orientation_error_deg(quat_to_rot(a[3:7]), quat_to_rot(b[3:7]), body.symmetries)
@@ -438,7 +449,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         key = (st.scale, n, st.lam, st.ramp)
         if key not in objs:
             objs[key] = SilhouetteObjective(body, cam, ft[:n], fm[:n], t0, st.scale, st.lam, st.ramp,
-                                            cfg.dist_scale, cfg.hmax)
+                                            cfg.dist_scale, cfg.hmax, cfg.gravity)
         return objs[key]
 
     R_guess = quat_to_rot(q_guess)
@@ -464,12 +475,13 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
             for st in cfg.final:
                 p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
                 hist = hist + h
-        iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax)
+        iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax, cfg.gravity)
         cands.append(Candidate(p, q, float(E), float(iou.mean()), iou, hist, i))
     cands.sort(key=lambda c: (-c.mean_iou, c.cost))
     best = cands[0]
     alts = cands[1:]
-    tr_best = simulate(best.params, best.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False)
-    distinct = distinct_alternatives(best, alts, body, ft, t0, cfg.tie_iou, cfg.distinct_deg, cfg.hmax)
+    tr_best = simulate(best.params, best.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False, g=cfg.gravity)
+    distinct = distinct_alternatives(best, alts, body, ft, t0, cfg.tie_iou, cfg.distinct_deg, cfg.hmax, cfg.gravity)
     return FitResult(best.params, best.q_base, t0, ft, frames, tr_best.states, best.iou, best.mean_iou,
-                     best.history, alts, bool(distinct), time.perf_counter() - t_start, len(starts), distinct)
+                     best.history, alts, bool(distinct), time.perf_counter() - t_start, len(starts), distinct,
+                     float(cfg.gravity), float(cfg.hmax))

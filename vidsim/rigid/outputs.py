@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from vidsim.rigid.body import BoxBody, RigidBodyError
-from vidsim.rigid.dynamics import N_PARAM, PARAM_NAMES, gravity_vector, quat_to_rot, simulate
+from vidsim.rigid.dynamics import G_EARTH, N_PARAM, PARAM_NAMES, gravity_vector, quat_to_rot, simulate
 from vidsim.rigid.fit import Candidate, FitResult
 from vidsim.rigid.silhouette import render_coverage
 from vidsim.video.camera import PinholeCamera
@@ -19,7 +19,8 @@ from vidsim.video.camera import PinholeCamera
 
 def simulated_states(res: FitResult, body: BoxBody, times: np.ndarray) -> np.ndarray:
     """(T, 13) states of the fitted throw at ``times`` (seconds, >= ``res.t0``)."""
-    return simulate(res.params, res.q0, body.inertia, np.asarray(times, float), res.t0, sensitivities=False).states
+    return simulate(res.params, res.q0, body.inertia, np.asarray(times, float), res.t0, res.hmax,
+                    sensitivities=False, g=res.gravity).states
 
 
 def simulated_masks(res: FitResult, body: BoxBody, cam: PinholeCamera) -> np.ndarray:
@@ -77,7 +78,8 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
 
     Keys: ``format``; the named estimate at time ``t0`` (``position`` m, ``quaternion`` (w,x,y,z)
     body -> world, ``velocity`` m/s, ``omega_world`` rad/s, ``tilt``/``roll`` rad,
-    ``gravity_direction`` unit (3,) in the camera-defined world frame); ``mean_iou``, ``iou`` (T,),
+    ``gravity_direction`` unit (3,) in the camera-defined world frame, ``gravity_magnitude`` m/s^2
+    (known, not fitted), ``hmax`` the RK4 step bound, s); ``mean_iou``, ``iou`` (T,),
     ``ambiguous``, ``distinct_alternatives``; ``params`` (14,) raw vector (:data:`PARAM_NAMES`);
     ``times`` (T,) s, ``frames`` (T,) footage indices, ``states`` (T, 13); ``history``;
     ``alternatives`` (list of candidates, best first), ``seconds``, ``n_starts``; ``object`` (the
@@ -101,6 +103,7 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
         "tilt": float(res.params[12]),
         "roll": float(res.params[13]),
         "gravity_direction": g.tolist(),
+        "gravity_magnitude": float(res.gravity),
         "mean_iou": float(res.mean_iou),
         "iou": np.asarray(res.iou, float).tolist(),
         "ambiguous": bool(res.ambiguous),
@@ -113,6 +116,7 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
         "history": [float(h) for h in res.history],
         "seconds": float(res.seconds),
         "n_starts": int(res.n_starts),
+        "hmax": float(res.hmax),
         "alternatives": [_candidate_to_dict(c) for c in res.alternatives],
         "object": body.to_meta(),
     }
@@ -173,7 +177,8 @@ def fit_from_dict(d: dict, where: str = "fit.yaml") -> FitResult:
     return FitResult(params, q0, float(d["t0"]), times, frames, states, iou, float(d["mean_iou"]),
                      [float(h) for h in d.get("history", [])], alts, bool(d.get("ambiguous", False)),
                      float(d.get("seconds", 0.0)), int(d.get("n_starts", 0)),
-                     [int(i) for i in d.get("distinct_alternatives", [])])
+                     [int(i) for i in d.get("distinct_alternatives", [])],
+                     float(d.get("gravity_magnitude", G_EARTH)), float(d.get("hmax", 1.0 / 60.0)))
 
 
 def check_masks(masks: np.ndarray, times: np.ndarray, where: str = "masks.npz") -> tuple[np.ndarray, np.ndarray]:

@@ -18,10 +18,10 @@ def _fit(rng) -> tuple[FitResult, BoxBody]:
     q = rng.normal(size=4)
     q /= np.linalg.norm(q)
     times = 1.0 + np.arange(12) / 30.0
-    st = simulate(p, q, body.inertia, times, 1.0, sensitivities=False).states
+    st = simulate(p, q, body.inertia, times, 1.0, 1.0 / 120, sensitivities=False, g=9.80665).states
     alt = Candidate(p + 0.01, -q, 3.25, 0.91, rng.uniform(size=12), [5.0, 4.0, 3.25], 7)
     res = FitResult(p, q, 1.0, times, np.arange(30, 42), st, rng.uniform(0.9, 1.0, 12), 0.95,
-                    [9.0, 2.0, 1.1], [alt], True, 12.5, 30, [0])
+                    [9.0, 2.0, 1.1], [alt], True, 12.5, 30, [0], 9.80665, 1.0 / 120)
     return res, body
 
 
@@ -31,8 +31,8 @@ def test_fit_dict_round_trips_exactly_through_yaml(rng):
     back = fit_from_dict(d)
     for name in ("params", "q0", "times", "frames", "states", "iou"):
         assert np.array_equal(getattr(back, name), getattr(res, name)), name
-    assert (back.t0, back.mean_iou, back.history, back.ambiguous, back.seconds, back.n_starts, back.distinct) == \
-        (res.t0, res.mean_iou, res.history, res.ambiguous, res.seconds, res.n_starts, res.distinct)
+    assert (back.t0, back.mean_iou, back.history, back.ambiguous, back.seconds, back.n_starts, back.distinct, back.gravity, back.hmax) == \
+        (res.t0, res.mean_iou, res.history, res.ambiguous, res.seconds, res.n_starts, res.distinct, res.gravity, res.hmax)
     a, b = back.alternatives[0], res.alternatives[0]
     assert np.array_equal(a.params, b.params) and np.array_equal(a.q_base, b.q_base)
     assert (a.cost, a.mean_iou, a.history, a.start) == (b.cost, b.mean_iou, b.history, b.start)
@@ -42,6 +42,9 @@ def test_fit_dict_round_trips_exactly_through_yaml(rng):
     body2 = BoxBody.from_meta(d["object"])
     assert np.array_equal(body2.inertia, body.inertia)
     assert np.allclose(simulated_states(back, body2, back.times), res.states, atol=1e-12)
+    # the stored gravity magnitude is used: Earth's would move the body elsewhere
+    earth = simulate(back.params, back.q0, body2.inertia, back.times, back.t0, back.hmax, sensitivities=False).states
+    assert np.abs(earth[-1, :3] - res.states[-1, :3]).max() > 1e-4
 
 
 def test_fit_dict_errors_name_the_field(rng):
