@@ -1,0 +1,75 @@
+"""The fluid family's metrics table: measured figures of the stages against the issue's targets.
+
+Pure function of the stages' ``summary.json`` contents (dicts); the ``fluid_metrics`` stage
+reads and writes the files.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+COLUMNS = ("item", "quantity", "value", "target", "met")
+
+
+def _row(item: str, q: str, v: float, target: str, met: bool | None) -> dict[str, Any]:
+    return {"item": item, "quantity": q, "value": v, "target": target,
+            "met": "" if met is None else ("yes" if met else "NO")}
+
+
+def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per measured figure.
+
+    Args:
+        summaries: contents of ``fluid_middlebury``, ``fluid_flow`` and ``fluid_edit`` summaries
+            (recognised by their keys).
+
+    Returns:
+        rows with keys :data:`COLUMNS`; ``met`` is ``yes``/``NO`` where the issue states a
+        target, empty otherwise. Unknown summaries raise ``ValueError`` naming their keys.
+    """
+    rows: list[dict[str, Any]] = []
+    for s in summaries:
+        if "epe_px" in s and isinstance(s["epe_px"], dict):  # Middlebury
+            m = s["method"]
+            for scene, d in s["epe_px"].items():
+                ref = d.get("dis_medium")
+                rows.append(_row(f"middlebury/{scene}", f"epe_px ({m})", d[m],
+                                 f"<= DIS medium ({ref:.4f})" if ref is not None else "", d[m] <= ref if ref is not None else None))
+        elif "n_pairs" in s:  # optical flow of a footage folder
+            item = f"flow/{s['footage']}"
+            if "epe_px" in s:
+                rows.append(_row(item, f"epe_px ({s['method']}) vs true velocity", s["epe_px"],
+                                 f"<= {s['baseline']} ({s['epe_px_baseline']:.4f})", s["epe_px"] <= s["epe_px_baseline"]))
+                if "epe_px_visible_fluid" in s:
+                    rows.append(_row(item, "epe_px where fluid is visible", s["epe_px_visible_fluid"], "", None))
+                rows.append(_row(item, "mean true speed px/frame", s["mean_speed_true_px"], "", None))
+            else:
+                rows.append(_row(item, f"mean estimated speed px/frame ({s['method']}, no truth: real recording)",
+                                 s["mean_speed_px"], "", None))
+        elif "fraction_in_desired_sink" in s:  # an edit
+            item = f"edit/{s['edit']}"
+            rows.append(_row(item, "fraction of particles in desired sink", s["fraction_in_desired_sink"], ">= 0.98",
+                             s["fraction_in_desired_sink"] >= 0.98))
+            rows.append(_row(item, "fraction in desired sink at initialisation", s["fraction_in_desired_sink_init"], "", None))
+            real = s["footage"].startswith("piv_")
+            rows.append(_row(item, "rendered-flow EPE vs edited field px/frame", s["rendered_flow_epe_px"],
+                             "<= 1 (synthetic scenes)", None if real else s["rendered_flow_epe_px"] <= 1.0))
+            rows.append(_row(item, "patch-distance ratio", s["patch_distance_ratio"], "<= 1.5", s["patch_distance_ratio"] <= 1.5))
+            fo, fs = s["flicker_output"], s["flicker_source"]
+            ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
+            rows.append(_row(item, "flicker in static regions, output (grey levels)", fo,
+                             f"<= source ({fs:.3f})" if not math.isnan(fs) else "no static source region", ok))
+            rows.append(_row(item, "render s/frame", s["render_s_per_frame"], "", None))
+            rows.append(_row(item, "optimisation s", s["optimise_s"], "", None))
+        else:
+            raise ValueError(f"summary with keys {sorted(s)} is not a fluid_flow, fluid_middlebury or fluid_edit summary")
+    return rows
+
+
+def rows_to_csv(rows: list[dict[str, Any]]) -> str:
+    """CSV text (header + rows); floats with 4 significant decimals."""
+    def cell(v: Any) -> str:
+        t = f"{v:.4f}" if isinstance(v, float) else str(v)
+        return f'"{t}"' if "," in t else t
+    return ",".join(COLUMNS) + "\n" + "".join(",".join(cell(r[c]) for c in COLUMNS) + "\n" for r in rows)
