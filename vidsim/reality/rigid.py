@@ -119,6 +119,17 @@ class RigidRealityConfig:
         if self.n_background < 0:
             raise RigidBodyError(f"reality: 'n_background' must be >= 0, got {self.n_background}")
 
+    @classmethod
+    def from_schema(cls, d: dict) -> "RigidRealityConfig":
+        """From the ``rigid.reality`` config section (:class:`vidsim.config.rigid.RigidSceneConfig`)."""
+        d = dict(d)
+        spin = (float(d.pop("spin_min", 4.0)), float(d.pop("spin_max", 10.0)))
+        known = {f for f in cls.__dataclass_fields__ if f != "spin"}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise RigidBodyError(f"reality: unknown field(s) {unknown} (known: {sorted(known)})")
+        return cls(**d, spin=spin)
+
 
 # ----------------------------------------------------------------------------- MuJoCo
 def mujoco_xml(body: BoxBody, effects: RigidEffects) -> str:
@@ -207,6 +218,7 @@ class Throw:
         truth: initial state in the camera frame at ``truth['t0']``, gravity angles, effects,
             true capture times (never shown to the estimator).
         masks: (N, H, W) bool ground-truth silhouettes (for scoring segmentation).
+        true_camera: the camera that really filmed (world z up, with the lens effect): truth only.
     """
 
     frames: np.ndarray
@@ -215,6 +227,7 @@ class Throw:
     meta: dict
     truth: dict
     masks: np.ndarray
+    true_camera: PinholeCamera | None = None
 
 
 def sample_truth(rng: np.random.Generator, cfg: RigidRealityConfig) -> dict:
@@ -345,4 +358,4 @@ def make_throw(seed: int, cfg: RigidRealityConfig | None = None, effects: RigidE
     }
     meta = {"object": body.to_meta(), "fps": cfg.fps,
             "gravity_magnitude": G, "kind": "rigid"}
-    return Throw(frames, nominal, calib, meta, truth, masks)
+    return Throw(frames, nominal, calib, meta, truth, masks, lens)

@@ -1,0 +1,145 @@
+"""Shared pieces of the rigid family's stages: config -> settings, reading the family's files.
+
+File reading lives here (the CLI edge), never below ``vidsim/rigid``. Every error names the file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from omegaconf import DictConfig, OmegaConf
+
+from vidsim.errors import FootageError, VidsimError
+from vidsim.rigid.body import BoxBody, RigidBodyError
+from vidsim.rigid.fit import FitConfig, FitResult, Stage
+from vidsim.rigid.outputs import fit_from_dict, masks_from_npz
+from vidsim.video.segment import SegmentConfig
+
+
+class RigidStageError(VidsimError):
+    """A rigid stage's input is missing or malformed; the message names the file and field."""
+
+
+def plain(node: Any) -> Any:
+    """A Hydra node as plain Python containers."""
+    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+
+
+def fit_config(f: DictConfig | dict, gravity: float) -> FitConfig:
+    """The optimiser's :class:`FitConfig` from ``rigid.fit`` (pyramid capped at ``max_scale``,
+    iteration counts times ``iter_scale``) and the known gravity magnitude (m/s^2)."""
+    f = plain(f)
+    base = FitConfig()
+
+    def cap(stages: list[Stage]) -> list[Stage]:
+        return [Stage(min(s.scale, float(f["max_scale"])), s.frames, max(1, int(round(s.maxiter * f["iter_scale"]))),
+                      s.lam, s.ramp) for s in stages]
+
+    return FitConfig.from_dict({
+        "screen": cap(base.screen), "screen_keep": [int(k) for k in f["screen_keep"]],
+        "refine": cap(base.refine), "final": cap(base.final), "final_ratio": float(f["final_ratio"]),
+        "multistart": f["multistart"], "hmax": float(f["hmax"]), "distinct_deg": float(f["distinct_deg"]),
+        "tie_iou": float(f["tie_iou"]), "dist_scale": float(f["dist_scale"]), "gravity": float(gravity)})
+
+
+def segment_config(s: DictConfig | dict) -> SegmentConfig:
+    """:class:`SegmentConfig` from ``rigid.segment`` (validated)."""
+    sc = SegmentConfig(**plain(s))
+    sc.validate()
+    return sc
+
+
+def load_yaml(path: str | Path) -> Any:
+    """A YAML file's content; a one-line error naming the file when missing or invalid."""
+    path = Path(path)
+    if not path.is_file():
+        raise RigidStageError(f"{path}: file is missing")
+    try:
+        return yaml.safe_load(path.read_text())
+    except yaml.YAMLError as e:
+        raise RigidStageError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from e
+
+
+def read_masks(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(masks (N, H, W) bool, times (N,) s) of a segment stage's ``masks.npz``."""
+    path = Path(path)
+    if not path.is_file():
+        raise RigidStageError(f"{path}: file is missing")
+    try:
+        with np.load(path) as z:
+            return masks_from_npz({k: z[k] for k in z.files}, where=str(path))
+    except RigidBodyError as e:
+        raise RigidStageError(str(e)) from e
+    except (OSError, ValueError) as e:
+        raise RigidStageError(f"{path}: not a readable .npz ({e})") from e
+
+
+def read_fit(path: str | Path) -> tuple[FitResult, BoxBody]:
+    """The fit and its body from a ``fit.yaml``."""
+    d = load_yaml(path)
+    try:
+        res = fit_from_dict(d, where=str(path))
+        body = BoxBody.from_meta(d.get("object"), where=f"{path}: object")
+    except RigidBodyError as e:
+        raise RigidStageError(str(e)) from e
+    return res, body
+
+
+def body_from_meta(meta: dict, where: str) -> tuple[BoxBody, float]:
+    """The known body and gravity magnitude (m/s^2) from a footage's ``meta.yaml``."""
+    if "object" not in meta:
+        raise FootageError(f"{where}: missing field 'object' (shape, mass and inertia of the thrown body)")
+    try:
+        body = BoxBody.from_meta(meta["object"], where=f"{where}: object")
+    except RigidBodyError as e:
+        raise FootageError(str(e)) from e
+    g = meta.get("gravity_magnitude", 9.81)
+    try:
+        g = float(g)
+    except (TypeError, ValueError):
+        raise FootageError(f"{where}: field 'gravity_magnitude' = {g!r} is not a number (m/s^2)") from None
+    if not (np.isfinite(g) and g > 0):
+        raise FootageError(f"{where}: field 'gravity_magnitude' = {g!r} is not physical: expected a finite "
+                           "magnitude > 0 m/s^2 (9.81 on Earth)")
+    return body, g
+
+
+def log_image(lg: Any, entity: str, img: np.ndarray, jpeg_quality: int = 85) -> None:
+    """Log an RGB image JPEG-compressed when recording for real (frames would make the .rrd huge)."""
+    if type(lg).__name__ == "RerunLogger":
+        rr = lg._rr
+        lg.rec.log(entity, rr.Image(np.ascontiguousarray(img)).compress(jpeg_quality=jpeg_quality))
+    else:
+        lg.image(entity, img)
+
+
+def write_animation(path: str | Path, frames: np.ndarray, fps: float) -> None:
+    """Write (T, H, W, 3) uint8 RGB frames as an H.264 mp4 (PyAV) or a GIF (Pillow), atomically."""
+    from vidsim.io.atomic import atomic_path
+
+    path = Path(path)
+    frames = np.asarray(frames, np.uint8)
+    if path.suffix == ".gif":
+        from PIL import Image
+
+        ims = [Image.fromarray(f) for f in frames]
+        with atomic_path(path) as tmp:
+            ims[0].save(tmp, format="GIF", save_all=True, append_images=ims[1:], duration=int(1000 / fps), loop=0)
+        return
+    import av
+    from fractions import Fraction
+
+    h, w = frames.shape[1] // 2 * 2, frames.shape[2] // 2 * 2
+    with atomic_path(path) as tmp:
+        with av.open(str(tmp), mode="w", format="mp4") as c:
+            st = c.add_stream("libx264", rate=Fraction(int(round(fps * 1000)), 1000))
+            st.width, st.height, st.pix_fmt = w, h, "yuv420p"
+            st.options = {"crf": "23", "preset": "veryfast", "threads": "1"}
+            for f in frames:
+                for pkt in st.encode(av.VideoFrame.from_ndarray(np.ascontiguousarray(f[:h, :w]), format="rgb24")):
+                    c.mux(pkt)
+            for pkt in st.encode():
+                c.mux(pkt)
