@@ -123,6 +123,7 @@ class RigidBallConfig:
         max_jump: largest centroid step per frame, pixels.
         min_flight: fewest detections of one free flight.
         focal_guess: initial focal length of the perspective fit, pixels.
+        segment: segmentation of the small ball (no opening, clutter map on, all components kept).
     """
 
     video: str = "tracklab_physics/verticalToss.webm"
@@ -133,6 +134,8 @@ class RigidBallConfig:
     max_jump: float = 90.0
     min_flight: int = 6
     focal_guess: float = 600.0
+    segment: RigidSegmentConfig = field(default_factory=lambda: RigidSegmentConfig(
+        min_area=4, open_px=0, close_px=1, mixed_fraction=0.0, clutter_fraction=0.1, keep="all", max_area=600))
 
 
 @dataclass
