@@ -30,9 +30,24 @@ R_BW = np.array([[1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
 T_BW = np.array([-0.9, 0.3, 1.6])
 
 
-def board_to_world() -> np.ndarray:
+def target_for(square_size: float, blank_width: float | None = None) -> ChessboardTarget:
+    """The printed target scaled to ``square_size`` metres (the blank projector area scales too,
+    unless ``blank_width`` gives its width in metres: a narrow camera needs a narrower board)."""
+    if not (np.isfinite(square_size) and square_size > 0):
+        raise VidsimError(f"calibrate.square_size = {square_size!r} is not valid: expected > 0 metres")
+    k = square_size / TARGET.square_size
+    ext = [k * e for e in TARGET.board_extent]
+    if blank_width is not None:
+        if not (np.isfinite(blank_width) and blank_width > 0):
+            raise VidsimError(f"calibrate.target_blank_width = {blank_width!r} is not valid: expected > 0 metres")
+        ext[1] = (TARGET.pattern_size[0] + 1) * square_size + float(blank_width)
+    return ChessboardTarget(pattern_size=TARGET.pattern_size, square_size=float(square_size), board_extent=tuple(ext))
+
+
+def board_to_world(origin: np.ndarray | None = None) -> np.ndarray:
+    """(4, 4) pose of the reference board in the world (``origin`` in metres, default ``T_BW``)."""
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R_BW, T_BW
+    T[:3, :3], T[:3, 3] = R_BW, T_BW if origin is None else np.asarray(origin, float)
     return T
 
 
@@ -50,20 +65,32 @@ def _score(name: str, est: PinholeCamera, true: PinholeCamera, X: np.ndarray) ->
 def run(cfg: DictConfig) -> None:
     cam_true = camera_from_config(cfg.camera)
     proj_true = projector_from_config(cfg.projector) if cfg.projector.enabled else None
-    pattern = ProjectorPattern(width=proj_true.width, height=proj_true.height) if proj_true is not None else None
+    pattern = (ProjectorPattern(width=proj_true.width, height=proj_true.height, square_px=int(cfg.calibrate.projector_square_px))
+               if proj_true is not None else None)
     rng = np.random.default_rng(cfg.seed + 101)
-    # reality films the session ...
+    target = target_for(float(cfg.calibrate.square_size), cfg.calibrate.target_blank_width)
+    origin = np.asarray(cfg.calibrate.target_origin, float)
+    if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+        raise VidsimError(f"calibrate.target_origin = {list(cfg.calibrate.target_origin)} is not valid: expected 3 finite metres")
+    k = float(cfg.calibrate.still_scale)
+    if not (np.isfinite(k) and k > 0):
+        raise VidsimError(f"calibrate.still_scale = {k!r} is not valid: expected > 0 (1 = video resolution)")
+    cam_still = cam_true if k == 1.0 else cam_true.scaled(k)
+    # reality films the session (stills at k x the video resolution) ...
     tgt, pimgs, names = film_calibration_target(
-        cam_true, rng, target=TARGET, projector=proj_true, pattern=pattern, n_views=cfg.calibrate.n_views,
-        n_projector_views=cfg.calibrate.n_projector_views, board_to_world=board_to_world(),
+        cam_still, rng, target=target, projector=proj_true, pattern=pattern, n_views=cfg.calibrate.n_views,
+        n_projector_views=cfg.calibrate.n_projector_views, board_to_world=board_to_world(origin),
         noise_sigma=cfg.calibrate.noise_sigma,
     )
     # ... and the estimator sees only the images
-    calib = calibrate_scene(tgt, pimgs if proj_true is not None else None, target=TARGET, pattern=pattern,
-                            reference_view=0, image_names=names, board_to_world=board_to_world())
+    calib = calibrate_scene(tgt, pimgs if proj_true is not None else None, target=target, pattern=pattern,
+                            reference_view=0, image_names=names, board_to_world=board_to_world(origin))
     for key in ("rms_px", "projector_rms_px"):
         if calib.get(key, 0.0) > cfg.calibrate.max_rms_px:
             raise VidsimError(f"calibration {key} = {calib[key]:.3f} px exceeds calibrate.max_rms_px = {cfg.calibrate.max_rms_px}")
+    if k != 1.0:  # back to the video frames' pixels
+        calib["camera"] = PinholeCamera.from_dict(calib["camera"]).scaled(1.0 / k).to_dict()
+        calib["still_scale"] = k
     out = Path(cfg.paths.out)
     X = np.random.default_rng(0).uniform([-1, -0.5, 0.3], [1, 0.5, 2.3], (200, 3))
     est = PinholeCamera.from_dict(calib["camera"])

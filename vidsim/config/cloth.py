@@ -57,13 +57,22 @@ class ClothProjectorConfig:
 
 @dataclass
 class ClothCalibrationConfig:
-    """Calibration of the cloth scene from rendered chessboard images (camera + projector)."""
+    """Calibration of the cloth scene from rendered chessboard images (camera + projector).
+
+    Used by ``calibrate_scene`` with ``camera=cloth projector=cloth calibrate=cloth`` (the
+    ``conf/*/cloth.yaml`` files interpolate these values). ``target_origin``: where the reference
+    board (which defines the world frame) hangs, metres; ``square_size``: printed square, metres.
+    """
 
     n_views: int = 10
     n_projector_views: int = 10
     noise_sigma: float = 2.0
     square_size: float = 0.03  # m
     max_rms_px: float = 0.5
+    target_origin: list[float] = _l(-0.2, 0.0, 1.0)  # m, reference board's first printed corner
+    projector_square_px: int = 10  # checker square the projector casts, projector pixels
+    target_blank_width: float = 0.25  # m, blank board area right of the print (projector pattern)
+    still_scale: float = 2.0  # calibration stills at 2x the video resolution (640x480)
 
 
 @dataclass

@@ -127,6 +127,16 @@ class CalibrateConfig:
     n_projector_views: int = 16  # views with the projector's pattern (when projector.enabled)
     noise_sigma: float = 2.0
     max_rms_px: float = 0.5  # the stage fails loudly above this
+    # The printed target: square side (m; the board's blank projector area scales with it) and
+    # the origin of the reference board in the world (m; board x along world x, rows down -z,
+    # facing -y). The defaults suit the 3.5 m demo camera; a close-up scene needs its own.
+    square_size: float = 0.08
+    target_origin: list[float] = _v3(-0.9, 0.3, 1.6)
+    projector_square_px: int = 28  # checker square the projector casts, projector pixels
+    target_blank_width: Optional[float] = None  # m, blank area right of the print (None: scaled default)
+    # calibration stills taken at this multiple of the video resolution (a camera's still mode;
+    # the result is scaled back to the video frames): small video frames cannot resolve the target
+    still_scale: float = 1.0
 
 
 @dataclass
