@@ -1,0 +1,116 @@
+"""Pieces the fluid stages rely on: footage labels, optimiser checkpoint/resume, flow colours,
+the metrics table's target checks."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vidsim.errors import ConfigError
+from vidsim.fluid.edit import EditSpec
+from vidsim.fluid.footage import FootageLabelError, footage_folder_name, resolve_footage
+from vidsim.fluid.optimize import edit_field
+from vidsim.fluid.report import metrics_rows, rows_to_csv
+from vidsim.fluid.viz import arrow_grid, color_wheel, flow_to_color
+from vidsim.io.atomic import write_npz
+
+THREE = {
+    "grid": {"height": 48, "width": 48},
+    "sources": [{"name": "top", "box": [10, 2, 38, 4], "distribution": [["a", 0.3], ["b", 0.4], ["c", 0.3]]}],
+    "sinks": [{"name": "a", "box": [1, 42, 12, 46]}, {"name": "b", "box": [18, 42, 30, 46]},
+              {"name": "c", "box": [36, 42, 47, 46]}],
+    "obstacles": [{"center": [24, 22], "radii": [6, 3]}],
+    "weights": {"flow": 1.0, "smooth": 0.2, "neighborhood": 0.2},
+    "optimizer": {"iterations": 40},
+}
+
+
+def test_footage_labels_resolve_to_the_reality_stages_folders(tmp_path):
+    assert footage_folder_name("synthetic:waterfall") == "fluid_waterfall"
+    assert footage_folder_name("piv:karman") == "piv_karman"
+    assert resolve_footage("synthetic:flame", tmp_path) == tmp_path / "footage" / "fluid_flame"
+    assert resolve_footage("my/own/footage", tmp_path) == Path("my/own/footage")
+    with pytest.raises(FootageLabelError, match="unknown synthetic scene 'lava'"):
+        resolve_footage("synthetic:lava", tmp_path)
+    with pytest.raises(FootageLabelError, match="unknown PIV recording"):
+        footage_folder_name("piv:nowhere")
+    with pytest.raises(ConfigError, match="footage=''"):
+        resolve_footage("", tmp_path)
+
+
+def _video_field(rng: np.random.Generator) -> np.ndarray:
+    v = np.zeros((48, 48, 2))
+    v[..., 1] = 0.8
+    return v + 0.1 * rng.standard_normal(v.shape)
+
+
+class _Kill(Exception):
+    pass
+
+
+def test_optimiser_resumes_from_a_checkpoint_to_the_uninterrupted_result(tmp_path, rng):
+    spec = EditSpec.from_dict(THREE)
+    vf = _video_field(rng)
+    ref = edit_field(vf, spec)
+    assert ref.figures["iterations"] > 8, "the reference run must be long enough to interrupt"
+    ckpt = tmp_path / "ckpt.npz"
+
+    def killed_at_7(it, state):
+        write_npz(ckpt, **state)  # what the stage writes (atomically) every checkpoint_every iterations
+        if it == 7:
+            raise _Kill
+
+    with pytest.raises(_Kill):
+        edit_field(vf, spec, on_iter=killed_at_7)
+    with np.load(ckpt) as z:
+        state = {k: z[k] for k in z.files}
+    assert int(state["it"]) == 7
+    seen = []
+    res = edit_field(vf, spec, resume=state, on_iter=lambda it, s: seen.append(it))
+    assert seen[0] == 8  # continues with the next iteration, none repeated
+    np.testing.assert_array_equal(res.field, ref.field)  # bit-identical
+    assert res.history == ref.history
+    assert res.figures["iterations"] == ref.figures["iterations"]
+    assert res.figures["fraction_in_desired_sink"] == ref.figures["fraction_in_desired_sink"] >= 0.98
+
+
+def test_resume_state_of_another_grid_is_rejected(rng):
+    spec = EditSpec.from_dict(THREE)
+    with pytest.raises(ValueError, match="resume state field shape"):
+        edit_field(_video_field(rng), spec, resume={"v": np.zeros((8, 8, 2)), "step": 0.5, "it": 1, "hist": [1.0]})
+
+
+def test_flow_colours_code_direction_and_speed():
+    f = np.zeros((2, 3, 2))
+    f[0, 0] = (1, 0)     # right: red
+    f[0, 1] = (-1, 0)    # left: cyan
+    f[0, 2] = (0.5, 0)   # right at half speed: paler red
+    f[1, 0] = (1e10, 0)  # unknown ground truth: black
+    c = flow_to_color(f, max_speed=1.0).astype(int)
+    assert c[0, 0, 0] == 255 and c[0, 0, 1] < 10 and c[0, 0, 2] < 10
+    assert c[0, 1, 0] < 10 and c[0, 1, 1] == 255 and c[0, 1, 2] == 255
+    assert c[0, 2, 0] == 255 and 100 < c[0, 2, 1] < 160
+    assert (c[1, 0] == 0).all()
+    assert (c[1, 1] == 255).all()  # zero flow: white
+    w = color_wheel(33)
+    assert w.shape == (33, 33, 3) and (w[0, 0] == 255).all()
+    o, v = arrow_grid(np.ones((16, 16, 2)), 4, scale=2.0)
+    assert o.shape == (16, 2) and np.allclose(v, 2.0) and o.min() == 2
+
+
+def test_metrics_table_flags_missed_targets():
+    edit = {"edit": "e", "footage": "fluid_x", "fraction_in_desired_sink": 0.97, "fraction_in_desired_sink_init": 0.5,
+            "rendered_flow_epe_px": 1.2, "edited_speed_mean_px": 1.0, "patch_distance_ratio": 1.4,
+            "flicker_output": 1.0, "flicker_source": 2.0, "render_s_per_frame": 0.1, "optimise_s": 1.0}
+    mb = {"method": "dis_fine", "epe_px": {"RubberWhale": {"dis_fine": 0.3, "dis_medium": 0.2}}}
+    rows = {(r["item"], r["quantity"].split(" (")[0]): r["met"] for r in metrics_rows([edit, mb])}
+    assert rows[("edit/e", "fraction of particles in desired sink")] == "NO"
+    assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"
+    assert rows[("edit/e", "patch-distance ratio")] == "yes"
+    assert rows[("edit/e", "flicker in static regions, output")] == "yes"
+    assert rows[("middlebury/RubberWhale", "epe_px")] == "NO"
+    assert rows_to_csv(metrics_rows([mb])).startswith("item,quantity,value,target,met\n")
+    with pytest.raises(ValueError, match="not a fluid_flow"):
+        metrics_rows([{"something": 1}])
