@@ -1,0 +1,1 @@
+"""Posteriors: how sure each estimate is (emcee sampling, calibrated noise models, surrogates)."""

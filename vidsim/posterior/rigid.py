@@ -1,0 +1,481 @@
+"""Posterior of a thrown rigid body's initial state and gravity direction from its silhouettes.
+
+Parameters (14, the fit's own vector, :data:`vidsim.rigid.dynamics.PARAM_NAMES`): initial position
+``x y z`` (m), a rotation vector ``rx ry rz`` (rad, body axes) applied to the fitted orientation,
+initial velocity ``vx vy vz`` (m/s), initial angular velocity in world axes ``wx wy wz`` (rad/s)
+and the gravity angles ``tilt roll`` (rad). Reports show the angles in degrees.
+
+Likelihood. The data are the per-frame silhouette mismatches ``E_k(theta)`` (seed eq. 3, full
+resolution pixels, the fit's own metric without its distance term). Silhouette pixels are not
+independent measurements: the mismatch lives on a thin band along the outline and neighbouring
+pixels move together, so a per-pixel Gaussian (model ``iid_pixel``, kept for comparison) is wildly
+overconfident. We use a generalised (loss-based) posterior
+
+    p(theta | footage) ∝ prior(theta) exp(-w (L(theta) - L*)),   L = sum_k E_k,
+
+whose learning rate ``w`` (1/pixel) comes from the footage at the optimum: frames are the
+independent units (sensor noise and segmentation errors are independent between frames), so the
+sampling covariance of the minimiser is the sandwich ``H^-1 J H^-1`` with ``H`` the Hessian of
+``L`` and ``J = sum_k g_k g_k^T`` the spread of the per-frame scores ``g_k = dE_k/dtheta`` at
+the optimum. ``w = D / tr(J H^-1)`` matches the posterior's covariance ``(w H)^-1`` to it (the
+"magnitude adjustment" of composite likelihoods; exact when ``J ∝ H``, as for a true likelihood).
+``H`` and ``g_k`` are read from per-frame quadratic response surfaces fitted on a random local
+design around the optimum (the mismatch is only piecewise smooth at the pixel scale, so the
+surface, refitted at the posterior's own scale, is more reliable than pointwise derivatives).
+
+Model discrepancy (``sandwich_hac``): when the model lacks an effect of reality (air drag), the
+per-frame scores are no longer independent but drift smoothly over the throw. A Newey-West
+(Bartlett kernel) long-run covariance of the scores over a lag window of ``hac_bandwidth`` frames
+replaces ``J``, which widens the posterior by what the temporally structured misfit implies.
+
+Multimodality: a distinct alternative solution of the fit (e.g. the flipped orientation) whose
+posterior density is within ``multimodal_ratio`` of the mode, or walkers whose orientations split
+by more than ``distinct_deg``, raise the ``multimodal`` flag.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vidsim.posterior.sampler import Chain, PosteriorError, SamplerConfig, correlation, sample, summarize
+from vidsim.rigid.body import BoxBody
+from vidsim.rigid.dynamics import (N_PARAM, PARAM_NAMES, quat_exp, quat_mul, quat_to_rot, rot_to_rotvec,
+                                   simulate)
+from vidsim.rigid.fit import SilhouetteObjective, orientation_error_deg
+from vidsim.rigid.silhouette import sequence_costs
+from vidsim.video.camera import PinholeCamera
+
+ANGLE_IDX = (3, 4, 5, 12, 13)
+"""Indices of the angular parameters (reported in degrees)."""
+
+UNITS = ("m",) * 3 + ("deg",) * 3 + ("m/s",) * 3 + ("rad/s",) * 3 + ("deg",) * 2
+"""Units of the reported (natural) parameters, in :data:`PARAM_NAMES` order."""
+
+DESIGN_SCALE0 = np.array([0.002] * 3 + [0.005] * 3 + [0.01] * 3 + [0.05] * 3 + [0.002] * 2)
+"""First local-design step per parameter (m, rad, m/s, rad/s, rad), refined to the posterior's scale."""
+
+NOISE_MODELS = ("sandwich", "sandwich_hac", "iid_pixel")
+
+
+@dataclass
+class RigidPriorConfig:
+    """Uniform prior box.
+
+    Attributes:
+        position_m: half-width around the fitted initial position, metres.
+        rotation_deg: largest rotation away from the fitted orientation, degrees.
+        velocity_mps: half-width around the fitted velocity, m/s.
+        omega_radps: half-width around the fitted angular velocity, rad/s.
+        gravity_deg: largest |tilt| and |roll| of gravity (absolute, from the camera's mounting), degrees.
+    """
+
+    position_m: float = 0.5
+    rotation_deg: float = 45.0
+    velocity_mps: float = 2.0
+    omega_radps: float = 5.0
+    gravity_deg: float = 20.0
+
+    def validate(self) -> None:
+        for k, v in vars(self).items():
+            if not (np.isfinite(v) and v > 0):
+                raise PosteriorError(f"prior.{k} = {v}: must be a finite half-width > 0")
+
+
+@dataclass
+class NoiseConfig:
+    """Noise model of the silhouette likelihood.
+
+    Attributes:
+        model: ``sandwich`` (frames independent), ``sandwich_hac`` (discrepancy-aware: scores
+            correlated over ``hac_bandwidth`` frames) or ``iid_pixel`` (every pixel independent;
+            overconfident, for comparison).
+        n_design: local-design evaluations per refinement (quadratic surfaces need > 120).
+        design_iters: refinements of the design scale to the posterior's width.
+        design_width: design standard deviation in posterior standard deviations.
+        hac_bandwidth: Newey-West lag window, frames (0: ``T / 4``).
+    """
+
+    model: str = "sandwich"
+    n_design: int = 400
+    design_iters: int = 2
+    design_width: float = 1.5
+    hac_bandwidth: int = 0
+
+    def validate(self) -> None:
+        if self.model not in NOISE_MODELS:
+            raise PosteriorError(f"noise.model = {self.model!r}: expected one of {NOISE_MODELS}")
+        if self.n_design < 150:
+            raise PosteriorError(f"noise.n_design = {self.n_design}: need >= 150 for 14-D quadratic surfaces")
+        if self.design_iters < 1 or not (self.design_width > 0) or self.hac_bandwidth < 0:
+            raise PosteriorError("noise: design_iters >= 1, design_width > 0 and hac_bandwidth >= 0 expected; got "
+                                 f"{self.design_iters}, {self.design_width}, {self.hac_bandwidth}")
+
+
+# ----------------------------------------------------------------------------- likelihood
+class FrameLoss:
+    """Per-frame silhouette mismatch (T,) of the fit's parameter vector (full resolution pixels).
+
+    Args:
+        body: the known body; cam: full-resolution camera.
+        times: (T,) fitted frame times, s; masks: (T, H, W) bool observed silhouettes.
+        t0: time of the initial state, s; q_base: (4,) base orientation of the parameters.
+        hmax: RK4 step bound, s.
+    """
+
+    def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, masks: np.ndarray, t0: float,
+                 q_base: np.ndarray, hmax: float = 1.0 / 60.0) -> None:
+        self.obj = SilhouetteObjective(body, cam, times, masks, t0, 1.0, 0.0, 1.0, 20.0, hmax)
+        self.q_base = np.asarray(q_base, float)
+        self.n_pixels = int(np.asarray(masks).size)
+        self.n_evals = 0
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.obj.times)
+
+    def __call__(self, p: np.ndarray, q_base: np.ndarray | None = None) -> np.ndarray | None:
+        """(T,) mismatches in pixels, or None when the simulation fails / leaves the view."""
+        o = self.obj
+        self.n_evals += 1
+        qb = self.q_base if q_base is None else q_base
+        tr = simulate(np.asarray(p, float), qb, o.body.inertia, o.times, o.t0, o.hmax, sensitivities=False)
+        if not tr.ok:
+            return None
+        X, Q = tr.states[:, 0:3], tr.states[:, 3:7]
+        if np.any((X @ o.cam.R.T + o.cam.t)[:, 2] < 0.05):
+            return None
+        c, _ = sequence_costs(X, Q, o.corners, o.cam, o.W, o.base, o.ramp, 0.5, False)
+        return c if np.all(np.isfinite(c)) else None
+
+
+@dataclass
+class NoiseModel:
+    """Calibrated likelihood scale.
+
+    Attributes:
+        model: noise model name; w: learning rate, 1/pixel.
+        center: (14,) minimiser of the fitted quadratic surface (the mode used by the sampler).
+        loss_min: total mismatch at ``center``, pixels.
+        H: (14, 14) Hessian of the total mismatch, pixels per parameter unit squared.
+        J: (14, 14) score covariance used (iid or HAC).
+        cov: (14, 14) approximate posterior covariance ``(w H)^-1``.
+        scale: (14,) final design step.
+        bandwidth: HAC lag window used (0: none).
+        r2: coefficient of determination of the total-loss surface on its design.
+        n_evals: evaluations spent.
+    """
+
+    model: str
+    w: float
+    center: np.ndarray
+    loss_min: float
+    H: np.ndarray
+    J: np.ndarray
+    cov: np.ndarray
+    scale: np.ndarray
+    bandwidth: int
+    r2: float
+    n_evals: int
+
+    def to_dict(self) -> dict:
+        return {"model": self.model, "w_per_pixel": float(self.w), "loss_min_pixels": float(self.loss_min),
+                "posterior_sd_laplace": np.sqrt(np.diag(self.cov)).tolist(), "hac_bandwidth": int(self.bandwidth),
+                "surface_r2": float(self.r2), "n_evals": int(self.n_evals)}
+
+
+def _quad_features(z: np.ndarray) -> np.ndarray:
+    n, D = z.shape
+    iu = np.triu_indices(D)
+    return np.hstack([np.ones((n, 1)), z, (z[:, :, None] * z[:, None, :])[:, iu[0], iu[1]]])
+
+
+def _unpack(coef: np.ndarray, D: int) -> tuple[np.ndarray, np.ndarray]:
+    """Linear (D,) and Hessian (D, D) of one quadratic surface's coefficients."""
+    g = coef[1:1 + D]
+    iu = np.triu_indices(D)
+    Hm = np.zeros((D, D))
+    Hm[iu] = coef[1 + D:]
+    Hm = Hm + Hm.T
+    return g, Hm
+
+
+def _pd(H: np.ndarray, floor: float = 1e-6) -> np.ndarray:
+    e, V = np.linalg.eigh(0.5 * (H + H.T))
+    e = np.maximum(e, floor * max(float(e.max()), 1e-12))
+    return (V * e) @ V.T
+
+
+def hac_covariance(scores: np.ndarray, bandwidth: int) -> np.ndarray:
+    """Newey-West long-run covariance (D, D) of (T, D) per-frame scores (sum, not mean)."""
+    G = np.asarray(scores, float)
+    J = G.T @ G
+    for lag in range(1, int(bandwidth) + 1):
+        Gl = G[lag:].T @ G[:-lag]
+        J += (1.0 - lag / (bandwidth + 1.0)) * (Gl + Gl.T)
+    return J
+
+
+def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = None,
+                    rng: np.random.Generator | None = None) -> NoiseModel:
+    """Fit per-frame quadratic surfaces around the optimum and derive the likelihood's scale.
+
+    Args:
+        loss: per-frame mismatch.
+        p0: (14,) the optimiser's estimate.
+        cfg: noise settings; rng: design randomness (seeded by the caller).
+
+    Returns:
+        :class:`NoiseModel` (reads only the footage and the model, never a truth).
+    """
+    cfg = cfg or NoiseConfig()
+    cfg.validate()
+    rng = rng or np.random.default_rng(0)
+    p0 = np.asarray(p0, float)
+    D = N_PARAM
+    T = loss.n_frames
+    E0 = loss(p0)
+    if E0 is None:
+        raise PosteriorError("the fitted parameters do not simulate (the fit is invalid): cannot build a posterior")
+    A = np.diag(DESIGN_SCALE0 * 0.1)  # design map dp = A z; whitened by the fitted curvature below
+    n_evals = 1
+    center = p0.copy()
+    rise0 = max(float(np.sum(E0)) * 0.02, float(T))  # first whitened design: ~2 % loss increase
+    kappa_prev = None
+    for it in range(cfg.design_iters + 1):
+        z = rng.normal(size=(cfg.n_design, D))
+        rows, ok = [], []
+        for zi in z:
+            e = loss(center + A @ zi)
+            n_evals += 1
+            if e is not None:
+                rows.append(e)
+                ok.append(zi)
+        if len(ok) < 150:
+            raise PosteriorError(f"local design: only {len(ok)} of {cfg.n_design} points simulate")
+        z = np.asarray(ok)
+        E = np.asarray(rows)
+        F = _quad_features(z)
+        coef, *_ = np.linalg.lstsq(F, E, rcond=None)  # (120, T)
+        tot = coef.sum(1)
+        y = E.sum(1)
+        r2 = float(1 - np.sum((y - F @ tot) ** 2) / max(np.sum((y - y.mean()) ** 2), 1e-300))
+        g_tot, H_tot = _unpack(tot, D)
+        H = _pd(H_tot, 1e-3)
+        zs = -np.linalg.solve(H, g_tot)
+        nz = np.linalg.norm(zs)
+        if nz > 2.0:
+            zs *= 2.0 / nz
+        gk = np.empty((T, D))
+        for k in range(T):
+            g, Hk = _unpack(coef[:, k], D)
+            gk[k] = g + Hk @ zs
+        if cfg.model == "sandwich_hac":
+            bw = cfg.hac_bandwidth or max(1, T // 4)
+            J = hac_covariance(gk, bw)
+        else:
+            bw = 0
+            J = gk.T @ gk
+        J = 0.5 * (J + J.T)
+        if cfg.model == "iid_pixel":
+            w = 1.0 / (2.0 * max(float(y.min()), 1e-9) / loss.n_pixels)
+        else:
+            w = D / float(np.trace(np.linalg.solve(H, J)))
+        A_used = A.copy()
+        center = center + A @ zs
+        Hinv = np.linalg.inv(H)
+        cov = A @ (Hinv / w) @ A.T
+        if it == cfg.design_iters:
+            break
+        # next design: N(0, kappa H^-1) in these coordinates, kappa giving the wanted loss rise
+        kappa = 2.0 * rise0 / D if it == 0 else cfg.design_width ** 2 / w
+        if kappa_prev is not None:
+            kappa = float(np.clip(kappa, kappa_prev / 10.0, kappa_prev * 10.0))
+        kappa_prev = kappa
+        A = A @ np.linalg.cholesky(kappa * Hinv)
+    Lc = loss(center)
+    n_evals += 1
+    if Lc is None:
+        raise PosteriorError("the quadratic surface's minimum does not simulate")
+    # Hessian and score covariance in parameter units (the last design's dp = A_used z)
+    Ai = np.linalg.inv(A_used)
+    Hp = Ai.T @ H @ Ai
+    Jp = Ai.T @ J @ Ai
+    s = np.sqrt(np.diag(A_used @ A_used.T))
+    return NoiseModel(cfg.model, float(w), center, float(np.sum(Lc)), Hp, Jp, cov, s, bw, r2, n_evals)
+
+
+# ----------------------------------------------------------------------------- posterior
+class RigidLogPosterior:
+    """``log prior + (-w (L(theta) - L*))``; ``-inf`` outside the prior or for a failed simulation."""
+
+    def __init__(self, loss: FrameLoss, noise: NoiseModel, p_fit: np.ndarray, prior: RigidPriorConfig) -> None:
+        self.loss = loss
+        self.noise = noise
+        self.p_fit = np.asarray(p_fit, float)
+        self.prior = prior
+
+    def in_prior(self, p: np.ndarray) -> bool:
+        pr, d = self.prior, p - self.p_fit
+        return bool(np.all(np.abs(d[0:3]) <= pr.position_m)
+                    and np.degrees(np.linalg.norm(p[3:6])) <= pr.rotation_deg
+                    and np.all(np.abs(d[6:9]) <= pr.velocity_mps)
+                    and np.all(np.abs(d[9:12]) <= pr.omega_radps)
+                    and np.all(np.degrees(np.abs(p[12:14])) <= pr.gravity_deg))
+
+    def __call__(self, p: np.ndarray) -> float:
+        if not np.all(np.isfinite(p)) or not self.in_prior(p):
+            return -np.inf
+        e = self.loss(p)
+        if e is None:
+            return -np.inf
+        return -self.noise.w * (float(np.sum(e)) - self.noise.loss_min)
+
+
+def to_natural(P: np.ndarray) -> np.ndarray:
+    """Parameters (..., 14) with angles converted to degrees (rotation offset, tilt, roll)."""
+    out = np.array(P, float, copy=True)
+    out[..., list(ANGLE_IDX)] = np.degrees(out[..., list(ANGLE_IDX)])
+    return out
+
+
+def truth_params(truth: dict, q_base: np.ndarray, symmetries: np.ndarray) -> np.ndarray:
+    """(14,) the truth of a synthetic throw in the posterior's coordinates (evaluation only).
+
+    The rotation part is the rotation vector from ``q_base`` to the true orientation, for the body
+    symmetry that makes it smallest.
+    """
+    Rb = quat_to_rot(np.asarray(q_base, float))
+    Rt = quat_to_rot(np.asarray(truth["quaternion"], float))
+    best = min((rot_to_rotvec(Rb.T @ Rt @ S) for S in symmetries), key=lambda d: float(np.linalg.norm(d)))
+    return np.concatenate([truth["position"], best, truth["velocity"], truth["omega_world"],
+                           [truth["tilt"], truth["roll"]]]).astype(float)
+
+
+@dataclass
+class RigidPosterior:
+    """Result of :func:`rigid_posterior`.
+
+    Attributes:
+        names: parameter names; units: their (natural) units.
+        p_fit: (14,) the optimiser's estimate; q_base: (4,) its orientation (rotation offsets refer to it).
+        noise: the calibrated noise model.
+        chain: the sampled chain (parameter units: radians).
+        summary: per-parameter rows in natural units (angles in degrees) with point estimate,
+            5/50/95 % quantiles, mean and sd.
+        corr: (14, 14) posterior correlation matrix.
+        multimodal: True when a distinct solution is nearly as probable or the walkers split.
+        multimodal_reasons: what raised the flag.
+        seconds: total wall time (noise calibration + sampling).
+    """
+
+    names: list[str]
+    units: list[str]
+    p_fit: np.ndarray
+    q_base: np.ndarray
+    noise: NoiseModel
+    chain: Chain
+    summary: list[dict]
+    corr: np.ndarray
+    multimodal: bool
+    multimodal_reasons: list[str] = field(default_factory=list)
+    seconds: float = 0.0
+
+    def samples(self, natural: bool = True) -> np.ndarray:
+        """(N, 14) post-burn-in samples (angles in degrees when ``natural``)."""
+        S = self.chain.samples()
+        return to_natural(S) if natural else S
+
+    def diagnostics(self) -> dict:
+        c = self.chain
+        return {"converged": bool(c.converged), "n_steps": int(c.n_steps), "n_walkers": int(c.chain.shape[1]),
+                "burn_in": int(c.burn), "tau": c.tau.tolist(), "tau_max": float(np.max(c.tau)),
+                "steps_per_tau": float(c.n_steps / np.max(c.tau)), "acceptance": float(c.acceptance),
+                "ess": float(c.ess), "sampling_seconds": float(c.seconds), "seconds": float(self.seconds),
+                "ess_per_minute": float(c.ess / max(self.seconds, 1e-9) * 60.0),
+                "multimodal": bool(self.multimodal), "multimodal_reasons": list(self.multimodal_reasons),
+                "noise": self.noise.to_dict()}
+
+
+def _orientation_split(samples: np.ndarray, distinct_deg: float, frac: float) -> float:
+    """Fraction of samples whose rotation offset is > ``distinct_deg`` from the median offset."""
+    d = np.degrees(samples[:, 3:6])
+    dev = np.linalg.norm(d - np.median(d, axis=0), axis=1)
+    return float(np.mean(dev > distinct_deg))
+
+
+def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, p_fit: np.ndarray,
+                    q_base: np.ndarray, t0: float, alternatives: list[dict] | None = None,
+                    noise: NoiseConfig | None = None, prior: RigidPriorConfig | None = None,
+                    sampler: SamplerConfig | None = None, chain_path: str | None = None,
+                    progress=None, distinct_deg: float = 10.0, multimodal_ratio: float = 0.01,
+                    hmax: float = 1.0 / 60.0) -> RigidPosterior:
+    """Sample the posterior of a fitted throw.
+
+    Args:
+        masks: (T, H, W) bool observed silhouettes of the fitted frames.
+        times: (T,) their times, s; t0: time of the initial state, s.
+        cam: full-resolution calibrated camera; body: the known body.
+        p_fit: (14,) fitted parameters (rotation part folded, so ``p_fit[3:6] = 0``).
+        q_base: (4,) fitted initial orientation (w, x, y, z).
+        alternatives: the fit's distinct solutions ``{"params": (14,), "quaternion": (4,)}``
+            (params may be omitted: the fit's other parameters are then used).
+        noise, prior, sampler: settings.
+        chain_path: resumable chain file (``.npz``) or None.
+        progress: callback per sampling chunk (see :func:`vidsim.posterior.sampler.sample`).
+        distinct_deg: orientation split that counts as a second mode, degrees.
+        multimodal_ratio: an alternative whose density is above this fraction of the mode's is a mode.
+        hmax: RK4 step bound, s.
+
+    Returns:
+        :class:`RigidPosterior`.
+    """
+    t_start = time.perf_counter()
+    noise = noise or NoiseConfig()
+    prior = prior or RigidPriorConfig()
+    sampler = sampler or SamplerConfig()
+    prior.validate()
+    masks = np.asarray(masks, bool)
+    times = np.asarray(times, float)
+    if masks.ndim != 3 or masks.shape[0] != times.shape[0] or masks.shape[0] < 5:
+        raise PosteriorError(f"masks must be (T, H, W) with T = len(times) >= 5; got {masks.shape}, {times.shape}")
+    if masks.shape[1:] != (cam.height, cam.width):
+        raise PosteriorError(f"masks are {masks.shape[2]}x{masks.shape[1]}, camera is {cam.width}x{cam.height}")
+    p_fit = np.asarray(p_fit, float)
+    if p_fit.shape != (N_PARAM,) or not np.all(np.isfinite(p_fit)):
+        raise PosteriorError(f"p_fit must be {N_PARAM} finite numbers {PARAM_NAMES}, got shape {p_fit.shape}")
+    q_base = np.asarray(q_base, float)
+    if np.linalg.norm(p_fit[3:6]) > 0:  # fold the rotation into the base orientation
+        q_base = quat_mul(q_base, quat_exp(p_fit[3:6]))
+        p_fit = p_fit.copy()
+        p_fit[3:6] = 0.0
+    q_base = q_base / np.linalg.norm(q_base)
+    loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax)
+    nm = calibrate_noise(loss, p_fit, noise, np.random.default_rng(sampler.seed))
+    logp = RigidLogPosterior(loss, nm, p_fit, prior)
+    ch = sample(logp, nm.center, nm.cov, sampler, chain_path, progress)
+    S = ch.samples()
+    nat = to_natural(S)
+    summ = summarize(nat, list(PARAM_NAMES), to_natural(p_fit))
+    for row, u in zip(summ, UNITS):
+        row["unit"] = u
+    reasons = []
+    for i, alt in enumerate(alternatives or []):
+        pa = np.asarray(alt.get("params", p_fit), float).copy()
+        qa = np.asarray(alt["quaternion"], float)
+        if "omega_world" in alt:
+            pa[9:12] = alt["omega_world"]
+        e = loss(pa, qa)
+        if e is None:
+            continue
+        ratio = float(np.exp(-nm.w * (np.sum(e) - nm.loss_min)))
+        dist = orientation_error_deg(quat_to_rot(qa), quat_to_rot(q_base), body.symmetries)
+        if dist > distinct_deg and ratio > multimodal_ratio:
+            reasons.append(f"alternative {i} ({dist:.0f} deg away) has density ratio {ratio:.3g} to the mode")
+    split = _orientation_split(S, distinct_deg, 0.01)
+    if split > 0.01:
+        reasons.append(f"{100 * split:.1f} % of samples are > {distinct_deg:g} deg from the median orientation")
+    return RigidPosterior(list(PARAM_NAMES), list(UNITS), p_fit, q_base, nm, ch, summ, correlation(nat),
+                          bool(reasons), reasons, time.perf_counter() - t_start)
