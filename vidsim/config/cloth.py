@@ -105,6 +105,7 @@ class ClothRealityConfig:
     lens_k1: float = 0.0
     projector_misalign_deg: float = 0.0
     effects: dict[str, Any] = field(default_factory=dict)
+    fabric_effects: dict[str, Any] = field(default_factory=dict)
     twin_resolution: int = 25
     twin_params: dict[str, float] = field(default_factory=lambda: {
         "bend": 3e-6, "stretch": 300.0, "shear": 40.0, "bend_damping": 3e-8, "stretch_damping": 3e-3,
@@ -168,6 +169,8 @@ class ClothFitConfig:
     parameters of the coarse grid (``grid_levels`` values each). ``budget``: evaluations after
     the grid (annealing or CMA-ES). Annealing schedule: ``cooling`` per ``evals_per_T``
     evaluations, simplex ``step``/``min_step`` in the unit cube, reset at factor 3.
+    ``method``: ``anneal`` or ``cmaes``; ``n_candidates``: best distinct points a fit hands to
+    the cross-trial selection.
     """
 
     space: dict[str, Any] = field(default_factory=_default_space)
@@ -182,6 +185,8 @@ class ClothFitConfig:
     cma_sigma0: float = 0.2
     alpha: float = 0.1
     seed: int = 0
+    method: str = "anneal"
+    n_candidates: int = 3
 
 
 @dataclass
