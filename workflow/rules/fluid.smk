@@ -74,7 +74,7 @@ rule reality_fluid:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=700,  # measured peak RSS 280 MB (128x128, 120 frames)
+        mem_mb=1000,  # measured peak RSS 420 MB (128x128, 120 frames)
         runtime=10,
     shell:
         "python -m vidsim.cli.reality_fluid fluid.reality.scene={wildcards.scene} fluid.reality.n_frames={params.frames} "
@@ -104,7 +104,7 @@ rule fluid_piv_footage:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,  # measured peak RSS 250 MB
+        mem_mb=800,  # measured peak RSS 322 MB (karman)
         runtime=5,
     shell:
         "python -m vidsim.cli.fluid_piv_footage fluid.piv.name={wildcards.name} paths.footage={input.recording} "
@@ -139,7 +139,7 @@ rule fluid_flow:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,  # measured peak RSS 420 MB (128x128, 120 frames, with the truth)
+        mem_mb=1000,  # measured peak RSS 404 MB (128x128, 120 frames, with the truth; PIV karman 296 MB)
         runtime=10,
     shell:
         "python -m vidsim.cli.fluid_flow paths.footage=$(dirname {input.meta}) paths.out={params.out} {params.extra} > {log} 2>&1"
@@ -171,7 +171,7 @@ rule fluid_middlebury:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,  # measured peak RSS 240 MB
+        mem_mb=600,  # measured peak RSS 239 MB
         runtime=5,
     shell:
         "python -m vidsim.cli.fluid_middlebury paths.footage={input.scenes} paths.out={params.out} {params.extra} > {log} 2>&1"
@@ -226,7 +226,7 @@ rule fluid_edit:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1500,  # measured peak RSS 640 MB (PIV edit, 256x190 output, 120 frames)
+        mem_mb=1300,  # measured peak RSS 561 MB (PIV edit, 256x190 output, 120 frames; synthetic 531 MB)
         runtime=15,
     shell:
         "python -m vidsim.cli.fluid_edit fluid.edit.spec={input.spec} paths.footage=$(dirname {input.meta}) "
@@ -253,7 +253,7 @@ rule fluid_metrics:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,  # measured peak RSS 150 MB
+        mem_mb=400,  # measured peak RSS 128 MB
         runtime=5,
     shell:
         "python -m vidsim.cli.fluid_metrics 'fluid.inputs={params.inputs}' paths.out={params.out} {params.extra} > {log} 2>&1"
