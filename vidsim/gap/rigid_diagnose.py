@@ -1,0 +1,596 @@
+"""Diagnose the sim-to-real gap of a rigid free-flight fit: where it lies, which effect, how far.
+
+Input is what an estimator may read: the silhouettes of the footage, the frame times, the
+calibrated camera, the known body and the fitted initial state (a :class:`~vidsim.rigid.fit.FitResult`
+summary). Nothing here reads truth.
+
+Procedure (all residuals are soft-silhouette differences ``a_sim - A_obs`` on a fixed region of
+interest around the body, at a reduced image scale; the *gap* is the mean per frame of
+``sum |a_sim - A_obs|``, i.e. the mismatch area in full-resolution pixels, seed eq. 3):
+
+1. Split the visible frames into a training part (the first ``1 - holdout`` of the flight) and
+   held-out frames (the rest, never used by any refit).
+2. Base refit (no effect) on the training frames from the given fit: the gap before, on held-out
+   frames.
+3. Noise floor: each held-out frame's pose fitted on its own (6 free numbers per frame, no
+   dynamics) -- the error that no motion model can remove with this renderer and these masks
+   (rendering + segmentation noise). The base gap minus this floor is the *dynamics* part; the
+   floor itself is the *rendering/camera* part plus noise.
+4. Screen (score test at zero): for each candidate block ``e`` with Jacobian ``J_e`` the
+   first-order decrease of the training sum of squares after re-optimising the base parameters,
+   ``D_e = g^T M^+ g`` with ``g = J_e^T r`` and ``M = J_e^T (I - P_theta) J_e``.
+5. Refit the best ``top_k`` candidates (one at a time, then pairs of the supported ones) and judge
+   each on held-out frames: *closure* = (gap_before - gap_after) / (gap_before - floor). An effect
+   is named when its closure is at least ``min_closure`` and the held-out gap before exceeds the
+   floor by ``min_excess`` (relative): a penalty so that an effect without support is not named.
+   Per-frame time jitter cannot be checked on held-out frames (its parameters there are not
+   identified), so it is judged on its training closure and on whether its fitted time errors are
+   white (most of their variance is not a cubic drift, ``jitter_min_white``), unlike the smooth drift a missing
+   force leaves.
+6. Where: per-frame gap with motion phases (fast/slow image speed, start/end), accumulated residual
+   heatmap, per face of the body (through the rasteriser's face ids), and the per-part split.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from vidsim.gap.rigid_model import RIGID_EFFECTS, GapError, RigidGapModel, effect_size
+from vidsim.rigid.body import BoxBody
+from vidsim.rigid.dynamics import quat_exp, quat_mul
+from vidsim.rigid.fit import visible_frames
+from vidsim.rigid.silhouette import render_coverage
+from vidsim.video.camera import PinholeCamera
+
+BAD_RESIDUAL = 1.0
+"""Residual of every pixel when the simulation diverged (the worst possible coverage mismatch)."""
+
+
+@dataclass
+class DiagnoseConfig:
+    """Settings of the rigid gap diagnosis.
+
+    Attributes:
+        candidates: effect names to consider (default: the whole library).
+        holdout: fraction of the visible frames held out.
+        split: "interleaved" (every round(1/holdout)-th frame is held out) or "end" (the last
+            frames: an extrapolation test, harsher on every extra parameter).
+        scale: image scale of the residuals (0.5: half resolution).
+        ramp: soft-silhouette ramp, pixels at that scale.
+        roi_px: region of interest: pixels within this distance (at scale) of either silhouette.
+        top_k: number of screened candidates refitted.
+        max_nfev: refit budget (residual evaluations per refit).
+        min_closure: held-out closure an effect needs to be named.
+        min_excess: the held-out gap must exceed the floor by this fraction for anything to be named.
+        jitter_min_white: time jitter is named only when at least this fraction of the variance
+            of its fitted time errors is not explained by a cubic drift in time.
+        pairs: also refit pairs of the named effects and keep the pair when it beats each alone.
+    """
+
+    candidates: list[str] = field(default_factory=lambda: list(RIGID_EFFECTS))
+    holdout: float = 0.3
+    split: str = "interleaved"
+    scale: float = 0.5
+    ramp: float = 1.0
+    roi_px: int = 12
+    top_k: int = 3
+    max_nfev: int = 15
+    min_closure: float = 0.3
+    min_excess: float = 0.15
+    jitter_min_white: float = 0.5
+    pairs: bool = True
+
+    def validate(self) -> None:
+        """Raise :class:`GapError` naming the field when a setting is not usable."""
+        for c in self.candidates:
+            if c not in RIGID_EFFECTS:
+                raise GapError(f"gap.candidates: unknown effect {c!r}; the library has {sorted(RIGID_EFFECTS)}")
+        if not 0.05 <= self.holdout <= 0.6:
+            raise GapError(f"gap.holdout must be in [0.05, 0.6], got {self.holdout}")
+        if self.split not in ("interleaved", "end"):
+            raise GapError(f"gap.split must be 'interleaved' or 'end', got {self.split!r}")
+        if not 0.1 <= self.scale <= 1.0:
+            raise GapError(f"gap.scale must be in [0.1, 1], got {self.scale}")
+        if self.top_k < 1 or self.max_nfev < 1:
+            raise GapError(f"gap.top_k and gap.max_nfev must be >= 1, got {self.top_k}, {self.max_nfev}")
+
+
+# ----------------------------------------------------------------------------- residuals
+class Problem:
+    """Soft-silhouette residuals of a :class:`RigidGapModel` against observed masks on a fixed ROI.
+
+    Args:
+        model: the model (its ``times`` are all visible frames).
+        obs: (T, h, w) observed coverage at the model's scale (area-averaged masks).
+        roi: (T, h, w) bool region of interest.
+        frames: indices of the frames whose residuals count.
+    """
+
+    def __init__(self, model: RigidGapModel, obs: np.ndarray, roi: np.ndarray, frames: np.ndarray) -> None:
+        self.model = model
+        self.obs = obs
+        self.roi = roi
+        self.frames = np.asarray(frames, int)
+        self.n_evals = 0
+
+    def residual_images(self, theta: np.ndarray) -> tuple[np.ndarray, bool]:
+        """(F, h, w) ``a_sim - A_obs`` on ``frames`` (zero outside the ROI) and an ok flag."""
+        self.n_evals += 1
+        a, ok = self.model.render(theta, self.frames)
+        if not ok:
+            return np.where(self.roi[self.frames], BAD_RESIDUAL, 0.0), False
+        return (a - self.obs[self.frames]) * self.roi[self.frames], True
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        """Flat residual vector over the ROI pixels of ``frames``."""
+        img, _ = self.residual_images(theta)
+        return img[self.roi[self.frames]]
+
+    def jacobian(self, theta: np.ndarray, step: float = 0.25) -> np.ndarray:
+        """(n_res, n_params) central finite differences, steps ``step`` x each parameter's scale.
+
+        Per-frame parameters (time jitter) are differenced all at once: frame ``k``'s column only
+        sees frame ``k``'s rows.
+        """
+        xs = self.model.x_scale()
+        m = self.roi[self.frames]
+        cols = np.zeros((int(m.sum()), self.model.n_params))
+        jit = self.model.slices.get("time_jitter")
+        for j in range(self.model.n_params):
+            if jit is not None and jit.start <= j < jit.stop:
+                continue
+            h = step * xs[j]
+            tp = theta.copy()
+            tp[j] += h
+            tm = theta.copy()
+            tm[j] -= h
+            lo = self.model.lower()[j]
+            if np.isfinite(lo) and tm[j] < lo:  # one-sided at a bound
+                tm[j] = theta[j]
+                cols[:, j] = (self.residual(tp) - self.residual(tm)) / h
+            else:
+                cols[:, j] = (self.residual(tp) - self.residual(tm)) / (2 * h)
+        if jit is not None:
+            h = step * RIGID_EFFECTS["time_jitter"].scale
+            tp = theta.copy()
+            tp[jit] += h
+            tm = theta.copy()
+            tm[jit] -= h
+            dimg = (self.residual_images(tp)[0] - self.residual_images(tm)[0]) / (2 * h)
+            for i, k in enumerate(self.frames):
+                col = np.zeros_like(dimg)
+                col[i] = dimg[i]
+                cols[:, jit.start + k] = col[m]
+        return cols
+
+    def placebo_jacobian(self, theta: np.ndarray, step: float = 0.25) -> np.ndarray:
+        """(n_res, F) per-frame columns of a placebo for time jitter: each frame's body moved
+        across its image motion (perpendicular to the velocity, in the image plane) by as much as
+        a time error of one jitter step moves it along. Equal size and count, no timing meaning."""
+        m = self.roi[self.frames]
+        h = step * RIGID_EFFECTS["time_jitter"].scale
+        tc = self.model.capture_times(theta)[self.frames]
+        X, Q, ok = self.model.poses(theta, tc)
+        Xp, _, _ = self.model.poses(theta, tc + 1e-4)
+        Vc = (Xp - X) / 1e-4 @ self.model.cam.R.T
+        n_c = np.stack([-Vc[:, 1], Vc[:, 0], np.zeros(len(Vc))], 1)
+        dX = h * n_c @ self.model.cam.R
+        ip, _ = self.model.render(theta, self.frames, dX)
+        im, _ = self.model.render(theta, self.frames, -dX)
+        self.n_evals += 2
+        dimg = (ip - im) / (2 * h)
+        cols = np.zeros((int(m.sum()), len(self.frames)))
+        for i in range(len(self.frames)):
+            col = np.zeros_like(dimg)
+            col[i] = dimg[i]
+            cols[:, i] = col[m]
+        return cols
+
+    def gap_per_frame(self, theta: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
+        """(F,) mismatch area per frame, full-resolution pixels."""
+        fr = self.frames if frames is None else np.asarray(frames, int)
+        a, ok = self.model.render(theta, fr)
+        if not ok:
+            return np.full(len(fr), np.inf)
+        d = np.abs(a - self.obs[fr]) * self.roi[fr]
+        return d.reshape(len(fr), -1).sum(1) / self.model.scale ** 2
+
+
+def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15) -> tuple[np.ndarray, dict]:
+    """Least-squares refit of all parameters of ``prob.model`` on ``prob.frames``.
+
+    Returns:
+        theta and info ``{cost, nfev, ok, cov}`` where ``cov`` is the Gauss-Newton covariance of
+        the parameters (physical units, residual variance from the fit).
+    """
+    xs = prob.model.x_scale()
+    lo = (prob.model.lower() - theta0) / xs
+    x0 = np.zeros(prob.model.n_params)
+    x0 = np.maximum(x0, lo + 1e-12)
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        return prob.residual(theta0 + x * xs)
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        return prob.jacobian(theta0 + x * xs) * xs
+
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, np.full_like(lo, np.inf)), method="trf",
+                        max_nfev=max_nfev, x_scale=1.0)
+    theta = theta0 + sol.x * xs
+    J = sol.jac
+    n, p = J.shape
+    s2 = float(2 * sol.cost / max(n - p, 1))
+    try:
+        cov_x = np.linalg.pinv(J.T @ J, rcond=1e-10) * s2
+    except np.linalg.LinAlgError:
+        cov_x = np.full((p, p), np.nan)
+    cov = cov_x * np.outer(xs, xs)
+    return theta, {"cost": float(2 * sol.cost), "nfev": int(sol.nfev), "ok": bool(np.isfinite(sol.cost)),
+                   "cov": cov, "jac": J}
+
+
+def score_screen(J_theta: np.ndarray, blocks: dict[str, np.ndarray], r: np.ndarray,
+                 one_sided: dict[str, bool] | None = None) -> dict[str, dict]:
+    """Score test at zero of each candidate block.
+
+    Args:
+        J_theta: (n, p) Jacobian of the base parameters; blocks: name -> (n, k_e) Jacobian of the
+            effect's parameters at zero; r: (n,) residuals at the base optimum.
+        one_sided: name -> True when the effect's parameter is bounded below by zero.
+
+    Returns:
+        name -> ``{decrease, fraction, df, step}``: first-order decrease of the sum of squares
+        after re-optimising the base parameters, as a fraction of the current sum, the block's
+        size and the Gauss-Newton step of its parameters (scaled units of the Jacobian).
+    """
+    one_sided = one_sided or {}
+    sse = float(r @ r)
+    A = J_theta.T @ J_theta
+    Ainv = np.linalg.pinv(A, rcond=1e-10)
+    Pr = r - J_theta @ (Ainv @ (J_theta.T @ r))
+    out = {}
+    for name, Je in blocks.items():
+        Jp = Je - J_theta @ (Ainv @ (J_theta.T @ Je))
+        g = Jp.T @ Pr
+        M = Jp.T @ Jp
+        if M.shape[0] == 0 or not np.any(M):
+            out[name] = {"decrease": 0.0, "fraction": 0.0, "df": int(Je.shape[1]), "step": []}
+            continue
+        Minv = np.linalg.pinv(M, rcond=1e-8)
+        step = -Minv @ g
+        dec = float(g @ Minv @ g)
+        if one_sided.get(name) and Je.shape[1] == 1 and step[0] < 0:
+            dec, step = 0.0, np.zeros(1)
+        out[name] = {"decrease": dec, "fraction": dec / sse if sse > 0 else 0.0, "df": int(Je.shape[1]),
+                     "step": step.tolist()}
+    return out
+
+
+def _free_pose_gap(model: RigidGapModel, obs: np.ndarray, roi: np.ndarray, theta: np.ndarray,
+                   frames: np.ndarray) -> np.ndarray:
+    """(F,) per-frame mismatch after fitting each frame's pose on its own (6 free numbers)."""
+    X, Q, ok = model.poses(theta, model.capture_times(theta)[frames])
+    out = np.zeros(len(frames))
+    cam = model.cam
+    corners = model.corners
+    depth = max(float(np.median((X @ cam.R.T + cam.t)[:, 2])), 0.1) if ok else 1.0
+    sx = 0.5 * depth / cam.K[0, 0]
+    sr = sx / max(np.linalg.norm(corners.reshape(-1, 3), axis=1).max(), 1e-3)
+    for i, k in enumerate(frames):
+        A = obs[k]
+        m = roi[k]
+
+        def res(x: np.ndarray, X0=X[i], Q0=Q[i], A=A, m=m) -> np.ndarray:
+            Xp = X0 + x[0:3] * sx
+            Qp = quat_mul(Q0, quat_exp(x[3:6] * sr))
+            a = render_coverage(Xp[None], Qp[None], corners, cam, model.ramp)[0]
+            return (a - A)[m]
+
+        sol = least_squares(res, np.zeros(6), method="trf", diff_step=0.5, max_nfev=40)
+        out[i] = np.abs(res(sol.x)).sum() / model.scale ** 2
+    return out
+
+
+# ----------------------------------------------------------------------------- where
+def motion_phases(X: np.ndarray, cam: PinholeCamera, times: np.ndarray) -> dict[str, np.ndarray]:
+    """Boolean masks (T,) of motion phases: fast/slow image speed (median split), start, end (thirds)."""
+    uv = cam.project(X)
+    sp = np.zeros(len(X))
+    if len(X) > 1:
+        v = np.gradient(uv, times, axis=0)
+        sp = np.linalg.norm(v, axis=1)
+    T = len(X)
+    k = np.arange(T)
+    return {"fast": sp > np.median(sp), "slow": sp <= np.median(sp), "start": k < T / 3,
+            "middle": (k >= T / 3) & (k < 2 * T / 3), "end": k >= 2 * T / 3}
+
+
+def face_attribution(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, frames: np.ndarray
+                     ) -> dict[str, float]:
+    """Mismatch pixels attributed to the body's parts and face directions through the rasteriser.
+
+    A pixel the model covers but the footage does not is charged to the face drawn there; a pixel
+    the footage covers but the model misses, to the face drawn at the nearest covered pixel.
+
+    Returns:
+        ``{"box<i>": px, "face<+x|-x|+y|-y|+z|-z>": px}`` summed over ``frames`` (full-res pixels).
+    """
+    from vidsim.render.raster import rasterize_batch
+    from vidsim.rigid.dynamics import quat_to_rot
+
+    V, F = model.body.mesh()
+    X, Q, ok = model.poses(theta, model.capture_times(theta)[frames])
+    out: dict[str, float] = {}
+    if not ok:
+        return out
+    Vs = np.stack([V @ quat_to_rot(q).T + x for x, q in zip(X, Q)])
+    _, face = rasterize_batch(Vs, F, model.cam)
+    # face k of box b: 12 triangles per box in _BOX_FACES order: -z,-z,+z,+z,-y,-y,+y,+y,+x,+x,-x,-x
+    dirs = ["-z", "-z", "+z", "+z", "-y", "-y", "+y", "+y", "+x", "+x", "-x", "-x"]
+    for i, k in enumerate(frames):
+        fmap = face[i]
+        sim = fmap >= 0
+        A = obs[k] > 0.5
+        extra = sim & ~A
+        missing = A & ~sim
+        if sim.any() and missing.any():
+            _, lab = cv2.distanceTransformWithLabels((~sim).astype(np.uint8), cv2.DIST_L2, 5,
+                                                     labelType=cv2.DIST_LABEL_PIXEL)
+            ys, xs_ = np.nonzero(sim)
+            lut = np.full(lab.max() + 1, -1, np.int64)
+            lut[lab[ys, xs_]] = fmap[ys, xs_]
+            f_missing = lut[lab[missing]]
+        else:
+            f_missing = np.zeros(0, np.int64)
+        for fid in np.concatenate([fmap[extra], f_missing]):
+            if fid < 0:
+                continue
+            b, t = divmod(int(fid), 12)
+            out[f"box{b}"] = out.get(f"box{b}", 0.0) + 1.0
+            out[f"face{dirs[t]}"] = out.get(f"face{dirs[t]}", 0.0) + 1.0
+    s = 1.0 / model.scale ** 2
+    return {k: v * s for k, v in sorted(out.items())}
+
+
+# ----------------------------------------------------------------------------- driver
+@dataclass
+class RigidDiagnosis:
+    """Result of :func:`diagnose_rigid` (``to_dict`` is the diagnosis.json content)."""
+
+    named: list[str]
+    verdict: str
+    frames: np.ndarray
+    train: np.ndarray
+    test: np.ndarray
+    gap_per_frame: np.ndarray
+    floor_test: np.ndarray
+    screen: dict[str, dict]
+    refits: dict[str, dict]
+    where: dict
+    heatmap: np.ndarray
+    signed_heatmap: np.ndarray
+    theta_base: np.ndarray
+    seconds: float
+    n_renders: int
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """Plain, JSON-friendly dictionary."""
+        return {
+            "verdict": self.verdict,
+            "named": list(self.named),
+            "frames": self.frames.tolist(),
+            "train_frames": self.train.tolist(),
+            "heldout_frames": self.test.tolist(),
+            "gap_per_frame_px": self.gap_per_frame.tolist(),
+            "noise_floor_heldout_px": float(self.floor_test.mean()),
+            "noise_floor_per_frame_px": self.floor_test.tolist(),
+            "screen": self.screen,
+            "refits": self.refits,
+            "where": self.where,
+            "seconds": self.seconds,
+            "n_renders": self.n_renders,
+            **self.extra,
+        }
+
+
+def _white_fraction(t: np.ndarray, x: np.ndarray) -> float:
+    """Fraction of the variance of ``x(t)`` that a cubic in time does not explain (white noise
+    keeps ~(n - 4)/n of it, the smooth drift a missing force leaves keeps little)."""
+    x = np.asarray(x, float) - np.mean(x)
+    d = float(x @ x)
+    if d <= 0 or len(x) < 8:
+        return 0.0
+    tt = (t - t.mean()) / max(np.ptp(t), 1e-9)
+    A = np.vander(tt, 4)
+    res = x - A @ np.linalg.lstsq(A, x, rcond=None)[0]
+    return float(res @ res / d)
+
+
+def _lag1(x: np.ndarray) -> float:
+    x = np.asarray(x, float) - np.mean(x)
+    d = float(x @ x)
+    return float(x[1:] @ x[:-1] / d) if d > 0 and len(x) > 2 else 1.0
+
+
+def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, fit: dict,
+                   cfg: DiagnoseConfig | None = None, progress=None) -> RigidDiagnosis:
+    """Diagnose the gap between a rigid fit and its footage (blind: no truth).
+
+    Args:
+        masks: (N, H, W) bool silhouettes of the clip (background frames allowed).
+        times: (N,) frame times, seconds.
+        cam: the calibrated camera (full resolution).
+        body: the known body.
+        fit: the fit's summary (``position, quaternion, velocity, omega_world, tilt, roll, t0``).
+        cfg: settings.
+        progress: optional callable ``progress(note)`` called after each step.
+
+    Returns:
+        :class:`RigidDiagnosis`.
+    """
+    t_start = time.perf_counter()
+    cfg = cfg or DiagnoseConfig()
+    cfg.validate()
+    masks = np.asarray(masks, bool)
+    times = np.asarray(times, float)
+    if masks.ndim != 3 or masks.shape[0] != times.shape[0]:
+        raise GapError(f"masks must be (N, H, W) with N = len(times); got {masks.shape} and {times.shape}")
+    if masks.shape[1:] != (cam.height, cam.width):
+        raise GapError(f"masks are {masks.shape[2]}x{masks.shape[1]} but the camera is {cam.width}x{cam.height}")
+    for k in ("position", "quaternion", "velocity", "omega_world", "tilt", "roll", "t0"):
+        if k not in fit:
+            raise GapError(f"fit: missing field {k!r} (expected the summary of a rigid fit)")
+    note = progress or (lambda s: None)
+    frames = visible_frames(masks)
+    if len(frames) < 8:
+        raise GapError(f"masks: the object is visible in only {len(frames)} consecutive frames (need >= 8)")
+    T = len(frames)
+    if cfg.split == "end":
+        n_test = max(3, int(round(cfg.holdout * T)))
+        train = np.arange(T - n_test)
+        test = np.arange(T - n_test, T)
+    else:  # interleaved: every k-th frame, never the first or last, is held out
+        k_step = max(2, int(round(1.0 / cfg.holdout)))
+        is_test = (np.arange(T) % k_step == k_step // 2) & (np.arange(T) > 0) & (np.arange(T) < T - 1)
+        test = np.flatnonzero(is_test)
+        train = np.flatnonzero(~is_test)
+    ft = times[frames]
+    p0 = np.r_[fit["position"], [0, 0, 0], fit["velocity"], fit["omega_world"], fit["tilt"], fit["roll"]].astype(float)
+    qb = np.asarray(fit["quaternion"], float)
+    t0 = float(fit["t0"])
+    base = RigidGapModel(body, cam, ft, t0, qb, (), cfg.scale, cfg.ramp)
+    h, w = base.cam.height, base.cam.width
+    obs = np.stack([cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) for m in masks[frames]])
+    a0, ok0 = base.render(p0)
+    if not ok0:
+        raise GapError("fit: the fitted throw diverges or passes behind the camera; nothing to diagnose")
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * cfg.roi_px + 1, 2 * cfg.roi_px + 1))
+    roi = np.stack([cv2.dilate(((o > 0.01) | (a > 0.01)).astype(np.uint8), ker) > 0 for o, a in zip(obs, a0)])
+
+    def problem(effects: tuple[str, ...], fr: np.ndarray) -> Problem:
+        return Problem(RigidGapModel(body, cam, ft, t0, qb, effects, cfg.scale, cfg.ramp), obs, roi, fr)
+
+    n_renders = 0
+    # 2. base refit on training frames
+    pb = problem((), train)
+    theta_b, info_b = refit(pb, p0, cfg.max_nfev)
+    n_renders += pb.n_evals
+    note("base refit")
+    gap_all = pb.gap_per_frame(theta_b, np.arange(T))
+    before = float(gap_all[test].mean())
+    # 3. floor
+    floor = _free_pose_gap(base, obs, roi, theta_b, test)
+    floor_train = _free_pose_gap(base, obs, roi, theta_b, train[:: max(1, len(train) // 8)])
+    note("noise floor")
+    # 4. screen: score test at the given fit on all frames (the base parameters projected out)
+    cands = [c for c in cfg.candidates]
+    allf = np.arange(T)
+    pall = problem(tuple(cands), allf)
+    theta_ext = np.r_[p0, np.zeros(pall.model.n_params - 14)]
+    Jall = pall.jacobian(theta_ext) * pall.model.x_scale()
+    r = pall.residual(theta_ext)
+    blocks = {c: Jall[:, pall.model.slices[c]] for c in cands}
+    one_sided = {c: RIGID_EFFECTS[c].lower is not None for c in cands}
+    if "time_jitter" in blocks:
+        blocks["placebo_jitter"] = pall.placebo_jacobian(theta_ext) * RIGID_EFFECTS["time_jitter"].scale
+    n_renders += pall.n_evals
+    screen = score_screen(Jall[:, :14], blocks, r, one_sided)
+    if "time_jitter" in screen:
+        # per-frame freedom explains some residual whatever its cause: count only what it
+        # explains beyond an equally free placebo
+        screen["time_jitter"]["fraction_raw"] = screen["time_jitter"]["fraction"]
+        screen["time_jitter"]["fraction"] -= screen["placebo_jitter"]["fraction"]
+    ranked = sorted(cands, key=lambda c: -screen[c]["fraction"])
+    for i, c in enumerate(ranked):
+        screen[c]["rank"] = i + 1
+    note("screen")
+    excess = before - float(floor.mean())
+    gap_present = excess > cfg.min_excess * float(floor.mean())
+
+    def judge(effects: tuple[str, ...]) -> dict:
+        nonlocal n_renders
+        pe = problem(effects, train)
+        th0 = np.r_[theta_b, np.zeros(pe.model.n_params - 14)]
+        th, info = refit(pe, th0, cfg.max_nfev)
+        n_renders += pe.n_evals
+        g = pe.gap_per_frame(th, np.arange(T))
+        after = float(g[test].mean())
+        tr_before = float(gap_all[train].mean())
+        tr_after = float(g[train].mean())
+        res = {"effects": list(effects), "heldout_before_px": before, "heldout_after_px": after,
+               "heldout_closure": (before - after) / excess if excess > 0 else 0.0,
+               "train_before_px": tr_before, "train_after_px": tr_after,
+               "train_closure": ((tr_before - tr_after)
+                                 / max(tr_before - float(floor_train.mean()), 0.05 * float(floor_train.mean()))),
+               "gap_per_frame_after_px": g.tolist(), "params": {}}
+        sd = np.sqrt(np.clip(np.diag(info["cov"]), 0, None))
+        for e in effects:
+            sl = pe.model.slices[e]
+            v = th[sl]
+            if e == "time_jitter":
+                vt = v[train]
+            # whiteness over consecutive training frames
+                res["params"][e] = {"std_s": float(np.std(vt)), "lag1_autocorr": _lag1(vt),
+                                    "values_s": v.tolist()}
+            else:
+                res["params"][e] = {"value": v.tolist(), "ci95": [(v - 1.96 * sd[sl]).tolist(),
+                                                                   (v + 1.96 * sd[sl]).tolist()],
+                                    "units": RIGID_EFFECTS[e].units}
+        return res
+
+    refits: dict[str, dict] = {}
+    supported: list[str] = []
+    for c in ranked[: cfg.top_k]:
+        res = judge((c,))
+        if c == "time_jitter":
+            ok = (gap_present and res["train_closure"] >= 0.5
+                  and res["params"][c]["white_fraction"] >= cfg.jitter_min_white)
+        else:
+            ok = gap_present and res["heldout_closure"] >= cfg.min_closure
+        res["supported"] = bool(ok)
+        refits[c] = res
+        if ok:
+            supported.append(c)
+        note(f"refit {c}")
+    named = sorted(supported, key=lambda c: -refits[c]["heldout_closure"] if c != "time_jitter"
+                   else -refits[c]["train_closure"])
+    # drop aliases of a better-named effect (they cannot be told apart)
+    kept: list[str] = []
+    for c in named:
+        if not any(c in RIGID_EFFECTS[k].alias for k in kept):
+            kept.append(c)
+    named = kept
+    if cfg.pairs and len(named) >= 2:
+        a, b = named[0], named[1]
+        res = judge((a, b))
+        refits[f"{a}+{b}"] = res
+        single = max(refits[a]["heldout_closure"], refits[b]["heldout_closure"])
+        # the second effect stays named only when adding it helps beyond the first alone
+        if b != "time_jitter" and res["heldout_closure"] < single + 0.1:
+            named = [a] + named[2:]
+        note("pair refit")
+    verdict = ("no gap beyond the noise floor" if not gap_present else
+               ("explained by " + ", ".join(named)) if named else "none of the candidates explains the gap")
+    # where
+    X, _, _ = base.poses(theta_b, base.capture_times(theta_b))
+    phases = motion_phases(X, cam, ft)
+    rimg, _ = problem((), np.arange(T)).residual_images(theta_b)
+    where = {
+        "per_phase_px": {k: float(gap_all[v].mean()) if v.any() else None for k, v in phases.items()},
+        "per_part_px": face_attribution(base, theta_b, obs, np.arange(T)),
+        "split_heldout_px": {"total": before, "rendering_and_noise (floor)": float(floor.mean()),
+                             "dynamics": max(excess, 0.0)},
+        "extra_vs_missing_px": {"model_covers_footage_not": float(np.clip(rimg, 0, None).sum() / cfg.scale ** 2 / T),
+                                "footage_covers_model_not": float(np.clip(-rimg, 0, None).sum() / cfg.scale ** 2 / T)},
+    }
+    return RigidDiagnosis(named, verdict, frames, train, test, gap_all, floor, screen, refits, where,
+                          np.abs(rimg).sum(0), rimg.sum(0), theta_b, time.perf_counter() - t_start, n_renders,
+                          {"gap_present": bool(gap_present), "heldout_excess_px": excess,
+                           "base_params": theta_b.tolist()})
