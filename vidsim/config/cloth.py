@@ -190,6 +190,24 @@ class ClothFitConfig:
 
 
 @dataclass
+class ClothSelectConfig:
+    """Inputs of ``select_cloth`` (Snakemake fills them): the trials' fit.yaml files and footage folders."""
+
+    fits: list[str] = field(default_factory=list)
+    footage: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ClothValidateConfig:
+    """Inputs of ``validate_cloth``: per fabric its params.yaml and its held-out footage folder
+    (same order), and the fabric names."""
+
+    fabrics: list[str] = field(default_factory=list)
+    params: list[str] = field(default_factory=list)
+    footage: list[str] = field(default_factory=list)
+
+
+@dataclass
 class ClothSkirtConfig:
     """Skirt generalisation (Figure 9): reality and estimator resolutions, frames."""
 
@@ -215,4 +233,6 @@ class ClothConfig:
     features: ClothFeaturesConfig = field(default_factory=ClothFeaturesConfig)
     model: ClothModelConfig = field(default_factory=ClothModelConfig)
     fit: ClothFitConfig = field(default_factory=ClothFitConfig)
+    select: ClothSelectConfig = field(default_factory=ClothSelectConfig)
+    validate: ClothValidateConfig = field(default_factory=ClothValidateConfig)
     skirt: ClothSkirtConfig = field(default_factory=ClothSkirtConfig)

@@ -1,0 +1,77 @@
+"""Stage ``select_cloth``: cross-trial selection of one fabric's parameters (seed Table 1).
+
+``python -m vidsim.cli.cloth_select paths.out=results/cloth/select/linen
++fits=[fit1.yaml,fit2.yaml] +footage=[footage1,footage2]`` (Snakemake passes them as
+``cloth.select.fits`` / ``cloth.select.footage``).
+
+Each trial's best distinct candidates (from its ``fit.yaml``) are evaluated on the *other* trial
+without re-optimising; the candidate with the least E1 + E2 is chosen. Writes ``params.yaml``
+and ``table.csv`` (one row per candidate: origin, parameters, E1, E2, E1 + E2, chosen).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import yaml
+from omegaconf import DictConfig
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_dict
+from vidsim.cloth import ESTIMATED_NAMES
+from vidsim.io.atomic import write_text, write_yaml
+from vidsim.log.progress import Progress
+
+
+def run(cfg: DictConfig) -> None:
+    out = Path(cfg.paths.out)
+    fits, footage = list(cfg.cloth.select.fits), list(cfg.cloth.select.footage)
+    if len(fits) < 2 or len(fits) != len(footage):
+        raise ClothStageError(f"cloth.select.fits ({len(fits)}) and cloth.select.footage ({len(footage)}) must list "
+                              "the same >= 2 trials")
+    docs = []
+    for f in fits:
+        p = Path(f)
+        if not p.is_file():
+            raise ClothStageError(f"{p}: fit.yaml is missing")
+        docs.append(yaml.safe_load(p.read_text()))
+    trials = [load_trial(f, cfg) for f in footage]
+    objs = [make_objective([tr], cfg) for tr in trials]
+    cands = []
+    for i, d in enumerate(docs):
+        for k, c in enumerate(d.get("candidates") or [{"theta": d["params"]}]):
+            cands.append((f"{trials[i].name}#{k}", c["theta"]))
+    prog = Progress(len(cands) * len(trials), "select_cloth evaluations", enabled=cfg.log.progress)
+    rows = []
+    for label, theta in cands:
+        errs = []
+        for tr, obj in zip(trials, objs):
+            th = np.array([float(theta[n]) for n in obj.space.names])
+            r = obj.evaluate(th)
+            errs.append(float(r.score))
+            prog.update(note=label)
+        rows.append((label, theta, errs))
+    tot = [sum(e) for _, _, e in rows]
+    best = int(np.argmin(tot))
+    label, theta, errs = rows[best]
+    obj = objs[0]
+    params = obj.params(np.array([float(theta[n]) for n in obj.space.names]), trials[0].density)
+    names = [n for n in ESTIMATED_NAMES]
+    hdr = "candidate," + ",".join(names) + "," + ",".join(f"E{i + 1}" for i in range(len(trials))) + ",total,chosen\n"
+    lines = [f"{lab}," + ",".join(f"{float(th.get(n, getattr(params, n))):.5g}" for n in names) + "," +
+             ",".join(f"{e:.5g}" for e in es) + f",{sum(es):.5g},{int(j == best)}\n" for j, (lab, th, es) in enumerate(rows)]
+    write_text(out / "table.csv", hdr + "".join(lines))
+    write_yaml(out / "params.yaml", {
+        "params": params_dict(params), "chosen": label, "errors": {tr.name: e for tr, e in zip(trials, errs)},
+        "total": float(sum(errs)), "trials": [tr.name for tr in trials], "fits": fits,
+        "start": docs[0].get("start", {}).get("params"),
+        "per_fit_best": {tr.name: {"params": d["params"], "score": d["score"]} for tr, d in zip(trials, docs)},
+    })
+    print(f"select_cloth: chose {label} with E1+E2 = {sum(errs):.4g} of {len(rows)} candidates", flush=True)
+
+
+main = stage_app("select_cloth", run)
+
+if __name__ == "__main__":
+    main()
