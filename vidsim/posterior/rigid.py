@@ -42,7 +42,7 @@ import numpy as np
 
 from vidsim.posterior.sampler import Chain, PosteriorError, SamplerConfig, correlation, sample, summarize
 from vidsim.rigid.body import BoxBody
-from vidsim.rigid.dynamics import (N_PARAM, PARAM_NAMES, quat_exp, quat_mul, quat_to_rot, rot_to_rotvec,
+from vidsim.rigid.dynamics import (G_EARTH, N_PARAM, PARAM_NAMES, quat_exp, quat_mul, quat_to_rot, rot_to_rotvec,
                                    simulate)
 from vidsim.rigid.fit import SilhouetteObjective, orientation_error_deg
 from vidsim.rigid.silhouette import sequence_costs
@@ -122,11 +122,12 @@ class FrameLoss:
         body: the known body; cam: full-resolution camera.
         times: (T,) fitted frame times, s; masks: (T, H, W) bool observed silhouettes.
         t0: time of the initial state, s; q_base: (4,) base orientation of the parameters.
-        hmax: RK4 step bound, s.
+        hmax: RK4 step bound, s; gravity: known magnitude, m/s^2.
     """
 
     def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, masks: np.ndarray, t0: float,
-                 q_base: np.ndarray, hmax: float = 1.0 / 60.0) -> None:
+                 q_base: np.ndarray, hmax: float = 1.0 / 60.0, gravity: float = G_EARTH) -> None:
+        self.gravity = float(gravity)
         self.obj = SilhouetteObjective(body, cam, times, masks, t0, 1.0, 0.0, 1.0, 20.0, hmax)
         self.q_base = np.asarray(q_base, float)
         self.n_pixels = int(np.asarray(masks).size)
@@ -141,7 +142,8 @@ class FrameLoss:
         o = self.obj
         self.n_evals += 1
         qb = self.q_base if q_base is None else q_base
-        tr = simulate(np.asarray(p, float), qb, o.body.inertia, o.times, o.t0, o.hmax, sensitivities=False)
+        tr = simulate(np.asarray(p, float), qb, o.body.inertia, o.times, o.t0, o.hmax, sensitivities=False,
+                      g=self.gravity)
         if not tr.ok:
             return None
         X, Q = tr.states[:, 0:3], tr.states[:, 3:7]
@@ -411,7 +413,7 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
                     noise: NoiseConfig | None = None, prior: RigidPriorConfig | None = None,
                     sampler: SamplerConfig | None = None, chain_path: str | None = None,
                     progress=None, distinct_deg: float = 10.0, multimodal_ratio: float = 0.01,
-                    hmax: float = 1.0 / 60.0) -> RigidPosterior:
+                    hmax: float = 1.0 / 60.0, gravity: float = G_EARTH) -> RigidPosterior:
     """Sample the posterior of a fitted throw.
 
     Args:
@@ -427,7 +429,7 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
         progress: callback per sampling chunk (see :func:`vidsim.posterior.sampler.sample`).
         distinct_deg: orientation split that counts as a second mode, degrees.
         multimodal_ratio: an alternative whose density is above this fraction of the mode's is a mode.
-        hmax: RK4 step bound, s.
+        hmax: RK4 step bound, s; gravity: known gravity magnitude, m/s^2.
 
     Returns:
         :class:`RigidPosterior`.
@@ -452,7 +454,7 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
         p_fit = p_fit.copy()
         p_fit[3:6] = 0.0
     q_base = q_base / np.linalg.norm(q_base)
-    loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax)
+    loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax, gravity)
     nm = calibrate_noise(loss, p_fit, noise, np.random.default_rng(sampler.seed))
     logp = RigidLogPosterior(loss, nm, p_fit, prior)
     ch = sample(logp, nm.center, nm.cov, sampler, chain_path, progress)

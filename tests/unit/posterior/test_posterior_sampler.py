@@ -1,0 +1,73 @@
+"""emcee driver: recovery of a known Gaussian, the 50-tau convergence flag, bit-identical resume."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vidsim.posterior.sampler import PosteriorError, SamplerConfig, autocorr_time, correlation, covered, sample, summarize
+
+COV = np.array([[1.0, 0.8, 0.0], [0.8, 1.0, 0.0], [0.0, 0.0, 4.0]])
+ICOV = np.linalg.inv(COV)
+MEAN = np.array([1.0, -2.0, 0.5])
+
+
+def _logp(x: np.ndarray) -> float:
+    d = x - MEAN
+    return -0.5 * float(d @ ICOV @ d)
+
+
+def test_gaussian_quantiles_correlation_and_convergence() -> None:
+    cfg = SamplerConfig(n_walkers=16, chunk=250, min_steps=500, max_steps=5000, seed=3)
+    ch = sample(_logp, MEAN + 0.1, COV, cfg)
+    assert ch.converged and ch.n_steps >= 50 * ch.tau.max()
+    S = ch.samples()
+    rows = summarize(S, ["a", "b", "c"])
+    sd = np.sqrt(np.diag(COV))
+    for r, m, s in zip(rows, MEAN, sd):
+        assert abs(r["median"] - m) < 0.1 * s
+        assert abs((r["q95"] - r["q05"]) / (2 * 1.6449 * s) - 1) < 0.08
+    C = correlation(S)
+    assert abs(C[0, 1] - 0.8) < 0.05 and abs(C[0, 2]) < 0.05
+    assert covered(S, MEAN).all() and not covered(S, MEAN + 3 * sd).any()
+
+
+def test_short_chain_is_reported_not_converged() -> None:
+    cfg = SamplerConfig(n_walkers=16, chunk=50, min_steps=50, max_steps=100, seed=1)
+    ch = sample(_logp, MEAN, COV, cfg)
+    assert ch.n_steps == 100
+    assert not ch.converged  # 100 steps cannot be 50 autocorrelation times here
+    assert ch.n_steps < 50 * ch.tau.max()
+
+
+def test_resume_is_bit_identical(tmp_path) -> None:
+    full = sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=200, max_steps=200, seed=5),
+                  tmp_path / "a.npz")
+    # a run stopped after 100 steps, then started again with the longer budget
+    sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=100, seed=5),
+           tmp_path / "b.npz")
+    resumed = sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=200, max_steps=200, seed=5),
+                     tmp_path / "b.npz")
+    assert resumed.n_evals == 100 * 8  # only the missing half was sampled
+    np.testing.assert_array_equal(full.chain, resumed.chain)
+    np.testing.assert_array_equal(full.log_prob, resumed.log_prob)
+
+
+def test_bad_settings_name_the_field(tmp_path) -> None:
+    with pytest.raises(PosteriorError, match="n_walkers"):
+        sample(_logp, MEAN, COV, SamplerConfig(n_walkers=4))
+    with pytest.raises(PosteriorError, match="max_steps"):
+        sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, min_steps=500, max_steps=100))
+    sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=50, max_steps=50), tmp_path / "c.npz")
+    with pytest.raises(PosteriorError, match="walkers, dim"):
+        sample(_logp, MEAN, COV, SamplerConfig(n_walkers=10, chunk=50, min_steps=50, max_steps=50), tmp_path / "c.npz")
+
+
+def test_autocorr_time_of_ar1_chain(rng) -> None:
+    # AR(1) with phi = 0.9 has integrated autocorrelation time (1 + phi) / (1 - phi) = 19
+    n, phi = 40000, 0.9
+    x = np.zeros((n, 4, 1))
+    e = rng.normal(size=(n, 4, 1))
+    for i in range(1, n):
+        x[i] = phi * x[i - 1] + e[i]
+    assert abs(autocorr_time(x)[0] / 19.0 - 1) < 0.15

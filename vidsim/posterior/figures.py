@@ -1,0 +1,88 @@
+"""Figures of a posterior: corner plot and correlation matrix (matplotlib figures, saved by the caller)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def corner_figure(samples: np.ndarray, names: list[str], units: list[str] | None = None,
+                  point: np.ndarray | None = None, truth: np.ndarray | None = None, bins: int = 30,
+                  max_points: int = 4000):
+    """Corner plot: 1-D marginals on the diagonal (5/50/95 % marked), 2-D scatter below.
+
+    Args:
+        samples: (N, D) posterior samples; names/units: D labels.
+        point: (D,) optimiser's estimate (red); truth: (D,) known truth of a synthetic case (blue).
+        bins: histogram bins; max_points: scatter points shown (thinned evenly).
+
+    Returns:
+        A matplotlib Figure.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    S = np.asarray(samples, float)
+    N, D = S.shape
+    step = max(1, N // max_points)
+    T = S[::step]
+    fig, axes = plt.subplots(D, D, figsize=(1.25 * D + 1, 1.25 * D + 1))
+    axes = np.atleast_2d(axes)
+    q = np.percentile(S, [5, 50, 95], axis=0)
+    for i in range(D):
+        for j in range(D):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(S[:, i], bins=bins, color="0.4", histtype="step")
+                for v, ls in zip(q[:, i], ("--", "-", "--")):
+                    ax.axvline(v, color="k", ls=ls, lw=0.7)
+                if point is not None:
+                    ax.axvline(point[i], color="r", lw=0.8)
+                if truth is not None:
+                    ax.axvline(truth[i], color="b", lw=0.8)
+                ax.set_yticks([])
+            else:
+                ax.plot(T[:, j], T[:, i], ",", color="0.2", alpha=0.5)
+                if point is not None:
+                    ax.plot(point[j], point[i], "r+", ms=6)
+                if truth is not None:
+                    ax.plot(truth[j], truth[i], "bx", ms=5)
+            ax.tick_params(labelsize=5)
+            if i == D - 1:
+                ax.set_xlabel(names[j] + (f" [{units[j]}]" if units else ""), fontsize=6)
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(names[i] + (f" [{units[i]}]" if units else ""), fontsize=6)
+            elif j > 0:
+                ax.set_yticklabels([])
+    fig.suptitle("posterior (black: 5/50/95 %" + (", red: estimate" if point is not None else "")
+                 + (", blue: truth" if truth is not None else "") + ")", fontsize=8)
+    fig.subplots_adjust(wspace=0.05, hspace=0.05)
+    return fig
+
+
+def correlation_figure(corr: np.ndarray, names: list[str], title: str = "posterior correlation"):
+    """Heat map of a (D, D) correlation matrix with the values printed. Returns a Figure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    C = np.asarray(corr, float)
+    D = C.shape[0]
+    fig, ax = plt.subplots(figsize=(0.45 * D + 2, 0.45 * D + 1.5))
+    im = ax.imshow(C, vmin=-1, vmax=1, cmap="RdBu_r")
+    ax.set_xticks(range(D), names, rotation=90, fontsize=7)
+    ax.set_yticks(range(D), names, fontsize=7)
+    for i in range(D):
+        for j in range(D):
+            ax.text(j, i, f"{C[i, j]:.1f}", ha="center", va="center", fontsize=5)
+    fig.colorbar(im, ax=ax, shrink=0.8)
+    ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    return fig
