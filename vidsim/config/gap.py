@@ -1,12 +1,98 @@
-"""Hydra schema of the ``gap`` config group (conf/gap/*.yaml extend it)."""
+"""Hydra schema of the ``gap`` config group (conf/gap/*.yaml extend it).
+
+The gap stages diagnose the sim-to-real gap of a fit (issue 7): ``diagnose`` (one rigid fit:
+where the gap lies, which candidate effect explains it, how far it shrinks), ``gap_suite``
+(withheld-effect cases: film, fit, diagnose blind, score against the truth) and ``gap_ball``
+(the real ball toss read at a constant 30 fps and with the container's timestamps). Units are SI
+unless a name says otherwise (``_px``, ``_s``).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
+
+
+def _all_effects() -> list[str]:
+    from vidsim.gap.rigid_model import RIGID_EFFECTS
+
+    return list(RIGID_EFFECTS)
+
+
+@dataclass
+class GapDiagnoseConfig:
+    """Settings of the rigid diagnosis (:class:`vidsim.gap.rigid_diagnose.DiagnoseConfig`, same names).
+
+    Attributes:
+        candidates: library effects considered (default: all of ``vidsim.gap.rigid_model.RIGID_EFFECTS``).
+        holdout: fraction of the visible frames held out from every refit.
+        split: "interleaved" (every round(1/holdout)-th frame) or "end" (the last frames).
+        scale: image scale of the residuals (0.5 = half resolution).
+        ramp: soft-silhouette anti-aliasing ramp, pixels at that scale.
+        roi_px: region of interest around the silhouettes, pixels at that scale.
+        top_k: screened candidates refitted; max_nfev: residual evaluations per refit.
+        min_closure: held-out fraction of the excess over the noise floor an effect must close.
+        min_excess: the held-out gap must exceed the floor by this fraction for anything to be named.
+        jitter_min_white: share of the fitted time errors' variance a cubic drift must leave.
+        pairs: refit the two best supported effects together (combined cases).
+    """
+
+    candidates: list[str] = field(default_factory=_all_effects)
+    holdout: float = 0.3
+    split: str = "interleaved"
+    scale: float = 0.5
+    ramp: float = 1.0
+    roi_px: int = 12
+    top_k: int = 3
+    max_nfev: int = 15
+    min_closure: float = 0.3
+    min_excess: float = 0.15
+    jitter_min_white: float = 0.5
+    pairs: bool = True
+
+
+@dataclass
+class GapPathsConfig:
+    """Extra inputs of the diagnose stage: the silhouettes (``masks.npz`` of the segment stage)
+    and the fit (``fit.yaml`` of ``fit_rigid``); empty: ``<paths.out>/../rigid/<case>/...`` must be given."""
+
+    masks: str = ""
+    fit: str = ""
+
+
+@dataclass
+class GapSceneConfig:
+    """The synthetic throws of the suite (see :class:`vidsim.reality.rigid.RigidRealityConfig`).
+
+    Attributes:
+        n_frames: frames of a throw; n_background: background frames before it.
+        width, height: image size, pixels; focal: pixels.
+    """
+
+    n_frames: int = 40
+    n_background: int = 3
+    width: int = 640
+    height: int = 480
+    focal: float = 640.0
 
 
 @dataclass
 class GapConfig:
-    """Settings of the gap stages (filled in as the stages are wired)."""
+    """Settings of the gap stages.
+
+    Attributes:
+        enabled: the family's switch inside Hydra (Snakemake's ``stages.gap`` decides what runs).
+        diagnose: the diagnosis settings.
+        paths: inputs of the ``diagnose`` stage.
+        scene: the suite's synthetic throws.
+        cases: the suite's cases, name -> ``{label, seed, effects | gust, render}`` (see
+            :mod:`vidsim.gap.suite`); ``conf/gap/default.yaml`` holds the public suite.
+        only: names of the cases to run (empty: all), e.g. the quick subset.
+    """
 
     enabled: bool = True
+    diagnose: GapDiagnoseConfig = field(default_factory=GapDiagnoseConfig)
+    paths: GapPathsConfig = field(default_factory=GapPathsConfig)
+    scene: GapSceneConfig = field(default_factory=GapSceneConfig)
+    cases: dict[str, Any] = field(default_factory=dict)
+    only: list[str] = field(default_factory=list)

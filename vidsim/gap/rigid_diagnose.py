@@ -536,8 +536,8 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
             v = th[sl]
             if e == "time_jitter":
                 vt = v[train]
-            # whiteness over consecutive training frames
                 res["params"][e] = {"std_s": float(np.std(vt)), "lag1_autocorr": _lag1(vt),
+                                    "white_fraction": _white_fraction(ft[train], vt),
                                     "values_s": v.tolist()}
             else:
                 res["params"][e] = {"value": v.tolist(), "ci95": [(v - 1.96 * sd[sl]).tolist(),

@@ -1,0 +1,86 @@
+"""Shared pieces of the gap stages: figures and Rerun logging of a rigid diagnosis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vidsim.gap.rigid_diagnose import RigidDiagnosis
+from vidsim.report.figures import save_figure
+
+
+def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "") -> None:
+    """Three panels: gap per frame (held-out marked, floor, after the named effect), screen, heatmap."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 3, figsize=(16, 4.2))
+    fr = d.frames
+    ax[0].plot(fr, d.gap_per_frame, "k.-", label="base model (refit on training frames)")
+    ax[0].plot(fr[d.test], d.gap_per_frame[d.test], "ko", mfc="none", ms=8, label="held-out frames")
+    ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label="noise floor (free pose per frame)")
+    for name in d.named[:2]:
+        g = np.asarray(d.refits[name]["gap_per_frame_after_px"])
+        ax[0].plot(fr, g, ".-", label=f"+ {name}")
+    ax[0].set_xlabel("frame")
+    ax[0].set_ylabel("mismatch, full-res pixels")
+    ax[0].set_title(f"where: gap per frame -- {d.verdict}", fontsize=9)
+    ax[0].legend(fontsize=7)
+    items = sorted(((k, v) for k, v in d.screen.items() if "rank" in v), key=lambda kv: kv[1]["rank"])
+    names = [k for k, _ in items]
+    vals = [max(v["fraction"], 0.0) for _, v in items]
+    colors = ["tab:green" if k in d.named else ("tab:orange" if k in d.refits else "tab:gray") for k in names]
+    ax[1].barh(names[::-1], vals[::-1], color=colors[::-1])
+    ax[1].set_xlabel("score-test screen: first-order share of the residual")
+    ax[1].set_title("which: green named, orange refitted", fontsize=9)
+    im = ax[2].imshow(d.signed_heatmap, cmap="coolwarm",
+                      vmin=-np.abs(d.signed_heatmap).max() - 1e-9, vmax=np.abs(d.signed_heatmap).max() + 1e-9)
+    ax[2].set_title("accumulated residual (red: model covers, blue: footage covers)", fontsize=9)
+    fig.colorbar(im, ax=ax[2], fraction=0.035)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def log_diagnosis(lg: Any, d: RigidDiagnosis, masks: np.ndarray, prefix: str = "") -> None:
+    """Footage silhouettes, per-frame gap curves (base, floor, after each refit) on the frame timeline."""
+    after = {k: np.asarray(v["gap_per_frame_after_px"]) for k, v in d.refits.items()}
+    floor = dict(zip(d.test.tolist(), d.floor_test.tolist()))
+    for i, k in enumerate(d.frames):
+        lg.set_frame(int(k))
+        lg.mask(f"{prefix}footage/camera/mask", masks[k])
+        lg.scalar(f"{prefix}metric/gap_base_px", float(d.gap_per_frame[i]))
+        if i in floor:
+            lg.scalar(f"{prefix}metric/noise_floor_px", float(floor[i]))
+        for name, g in after.items():
+            lg.scalar(f"{prefix}metric/gap_after_{name}_px", float(g[i]))
+    lg.set_frame(int(d.frames[-1]))
+    lg.image(f"{prefix}gap/heatmap", _heat_rgb(d.signed_heatmap))
+    lg.text(f"{prefix}gap/verdict", d.verdict)
+
+
+def _heat_rgb(h: np.ndarray) -> np.ndarray:
+    m = float(np.abs(h).max()) or 1.0
+    x = np.clip(h / m, -1, 1)
+    rgb = np.zeros(h.shape + (3,), np.uint8)
+    rgb[..., 0] = (255 * np.clip(x, 0, 1)).astype(np.uint8)
+    rgb[..., 2] = (255 * np.clip(-x, 0, 1)).astype(np.uint8)
+    rgb[..., 1] = (64 * (1 - np.abs(x))).astype(np.uint8)
+    return rgb
+
+
+def diagnose_config(node: Any):
+    """:class:`~vidsim.gap.rigid_diagnose.DiagnoseConfig` from the ``gap.diagnose`` node (validated)."""
+    from omegaconf import OmegaConf
+
+    from vidsim.gap.rigid_diagnose import DiagnoseConfig
+
+    d = OmegaConf.to_container(node, resolve=True) if not isinstance(node, dict) else dict(node)
+    cfg = DiagnoseConfig(**d)
+    cfg.validate()
+    return cfg

@@ -1,0 +1,144 @@
+"""Stage ``gap_suite``: the withheld-effect suite -- film, fit, diagnose blind, score against truth.
+
+``python -m vidsim.cli.gap_suite paths.out=results/gap/suite [gap.only=[null_a,lens_k1]]``. Cases
+are the entries of ``gap.cases`` (``conf/gap/default.yaml``: the public suite; add one with
+``+gap.cases.mycase={label: magnus, seed: 9, effects: {magnus: 3}}``). Writes, per case,
+``cases/<name>.json`` (diagnosis + score) and ``cases/<name>.png``; for the suite ``suite.json``
+(scores and the headline rates), ``confusion.csv``/``confusion.png`` (true label vs first named
+effect), ``shrinkage.csv`` (held-out gap before/after, floor, closure, recovered strength) and
+``suite.rrd`` (per case: silhouettes and gap curves over the frame timeline).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
+from vidsim.errors import ConfigError
+from vidsim.gap.rigid_model import GapError
+from vidsim.io.atomic import write_json, write_text
+from vidsim.log import make_logger
+from vidsim.log.progress import Progress
+from vidsim.report.figures import save_figure
+
+
+def headline(scores: dict[str, dict]) -> dict:
+    """The issue's measured targets over the suite's cases."""
+    single = [s for s in scores.values() if s["label"] not in ("none", "unexplained") and "+" not in s["label"]]
+    nulls = [s for s in scores.values() if s["label"] == "none"]
+    combos = [s for s in scores.values() if "+" in s["label"]]
+    ool = [s for s in scores.values() if s["label"] == "unexplained"]
+    clos = [c for s in single for c in s.get("closure", {}).values()]
+    rec = [r["rel_error"] for s in single for r in s.get("recovery", {}).values()]
+    return {
+        "named_first_correct": f"{sum(s['correct'] for s in single)}/{len(single)}",
+        "null_cases_naming_nothing": f"{sum(s['correct'] for s in nulls)}/{len(nulls)}",
+        "combined_both_named": f"{sum(s['correct'] for s in combos)}/{len(combos)}",
+        "out_of_library_reported_unexplained": f"{sum(s['correct'] and s['gap_present'] for s in ool)}/{len(ool)}",
+        "closure_of_true_effect_median": float(np.median(clos)) if clos else None,
+        "closure_at_least_50pct": f"{sum(c >= 0.5 for c in clos)}/{len(clos)}",
+        "strength_within_30pct": f"{sum(r <= 0.3 for r in rec)}/{len(rec)}",
+    }
+
+
+def _plot_confusion(rows: list[str], cols: list[str], M: np.ndarray, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(1.0 + 0.7 * len(cols), 1.0 + 0.5 * len(rows)))
+    ax.imshow(M, cmap="Blues")
+    for i in range(len(rows)):
+        for j in range(len(cols)):
+            if M[i, j]:
+                ax.text(j, i, str(M[i, j]), ha="center", va="center")
+    ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right")
+    ax.set_yticks(range(len(rows)), rows)
+    ax.set_xlabel("first effect named by the blind diagnosis")
+    ax.set_ylabel("effect withheld in reality")
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+def run(cfg: DictConfig) -> None:
+    from vidsim.gap.suite import case_labels, confusion, run_case
+    from vidsim.reality.rigid import RigidRealityConfig
+
+    cases = OmegaConf.to_container(cfg.gap.cases, resolve=True) or {}
+    only = list(cfg.gap.only)
+    unknown = [c for c in only if c not in cases]
+    if unknown:
+        raise ConfigError(f"gap.only names unknown case(s) {unknown}; known: {sorted(cases)}")
+    names = only or list(cases)
+    if not names:
+        raise ConfigError("gap.cases is empty: nothing to run")
+    for n in names:
+        if not isinstance(cases[n], dict):
+            raise ConfigError(f"gap.cases.{n} must be a mapping {{label, seed, effects}}, got {cases[n]!r}")
+        try:
+            case_labels(cases[n])
+        except GapError as e:
+            raise ConfigError(f"gap.cases.{n}: {e}") from e
+    dcfg = diagnose_config(cfg.gap.diagnose)
+    sc = cfg.gap.scene
+    scene = RigidRealityConfig(n_frames=sc.n_frames, n_background=sc.n_background, width=sc.width,
+                               height=sc.height, focal=sc.focal)
+    out = Path(cfg.paths.out)
+    tmp = out.with_name(f".{out.name}.part")
+    shutil.rmtree(tmp, ignore_errors=True)
+    (tmp / "cases").mkdir(parents=True)
+    prog = Progress(len(names), "gap_suite cases", every_s=0.0, enabled=cfg.log.progress)
+    scores: dict[str, dict] = {}
+    t0 = time.perf_counter()
+    with make_logger(tmp / "suite.rrd", "vidsim.gap_suite", cfg.log.rerun) as lg:
+        for n in names:
+            try:
+                d, s, masks, _ = run_case(cases[n], dcfg, scene)
+            except GapError as e:
+                raise ConfigError(f"gap.cases.{n}: {e}") from e
+            scores[n] = s
+            write_json(tmp / "cases" / f"{n}.json", {"case": cases[n], "score": s, "diagnosis": d.to_dict()})
+            plot_diagnosis(d, tmp / "cases" / f"{n}.png", title=f"{n}: withheld {s['label']}")
+            log_diagnosis(lg, d, masks, prefix=f"{n}/")
+            prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+    rows, cols, M = confusion(scores)
+    write_text(tmp / "confusion.csv", "true\\named," + ",".join(cols) + "\n"
+               + "".join(f"{r}," + ",".join(str(v) for v in M[i]) + "\n" for i, r in enumerate(rows)))
+    _plot_confusion(rows, cols, M, tmp / "confusion.png")
+    lines = ["case,label,named,correct,heldout_before_px,noise_floor_px,effect,heldout_after_px,closure,"
+             "strength_estimate,strength_truth,strength_rel_error"]
+    for n, s in scores.items():
+        effs = list(s.get("closure", {})) or [""]
+        for e in effs:
+            r = s.get("recovery", {}).get(e, {})
+            est = r.get("estimate", "")
+            tru = r.get("truth", "")
+            lines.append(",".join(str(x) for x in (
+                n, s["label"], "+".join(s["named"]) or "none", s["correct"], f"{s['heldout_before_px']:.2f}",
+                f"{s['noise_floor_px']:.2f}", e, f"{s.get('heldout_after_px', {}).get(e, float('nan')):.2f}",
+                f"{s.get('closure', {}).get(e, float('nan')):.3f}",
+                (" ".join(f"{v:.4g}" for v in est) if isinstance(est, list) else (f"{est:.4g}" if est != "" else "")),
+                (" ".join(f"{v:.4g}" for v in tru) if isinstance(tru, list) else (f"{tru:.4g}" if tru != "" else "")),
+                (f"{r['rel_error']:.3f}" if r else ""))))
+    write_text(tmp / "shrinkage.csv", "\n".join(lines) + "\n")
+    summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
+            "diagnose_config": OmegaConf.to_container(cfg.gap.diagnose, resolve=True)}
+    write_json(tmp / "suite.json", summ)
+    print(f"gap_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+
+
+main = stage_app("gap_suite", run)
+
+if __name__ == "__main__":
+    main()
