@@ -47,8 +47,10 @@ from vidsim.report.figures import contact_sheet, save_figure
 
 def load_edit(path: str | Path) -> tuple[EditSpec, dict[str, Any]]:
     """Read and validate an edit YAML; errors name the file and the key."""
+    if not str(path).strip():
+        raise ConfigError("fluid.edit.spec is empty: give the edit YAML (e.g. docs/fluid_edits/waterfall_widen.yaml)")
     path = Path(path)
-    if not str(path) or not path.is_file():
+    if not path.is_file():
         raise ConfigError(f"fluid.edit.spec={str(path)!r}: edit file is missing")
     try:
         d = yaml.safe_load(path.read_text())
@@ -134,9 +136,12 @@ def _arrow_figure(path: Path, spec: EditSpec, bg: np.ndarray, before: np.ndarray
     save_figure(fig, path)
 
 
-def _spec_key(raw: dict, n_frames: int, iterations: int, footage: Path) -> str:
+def _spec_key(raw: dict, n_frames: int, iterations: int, footage: Path, flow: np.ndarray) -> str:
+    """What a checkpoint belongs to: the edit, its settings and the flow it was optimised on."""
     txt = json.dumps({"spec": raw, "frames": n_frames, "iterations": iterations, "footage": footage.name}, sort_keys=True, default=str)
-    return hashlib.sha256(txt.encode()).hexdigest()[:16]
+    h = hashlib.sha256(txt.encode())
+    h.update(np.ascontiguousarray(flow, dtype=np.float32).tobytes())
+    return h.hexdigest()[:16]
 
 
 def run(cfg: DictConfig) -> None:
@@ -174,7 +179,7 @@ def run(cfg: DictConfig) -> None:
     video_fields(flow[:1], spec)  # the grid must fit the footage (clear error before optimising)
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
-    key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder)
+    key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
     resume = None
     if ckpt.is_file():
         with np.load(ckpt) as z:

@@ -55,6 +55,7 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
             real = s["footage"].startswith("piv_")
             rows.append(_row(item, "rendered-flow EPE vs edited field px/frame", s["rendered_flow_epe_px"],
                              "<= 1 (synthetic scenes)", None if real else s["rendered_flow_epe_px"] <= 1.0))
+            rows.append(_row(item, "edited field mean speed px/frame (scale of the EPE above)", s["edited_speed_mean_px"], "", None))
             rows.append(_row(item, "patch-distance ratio", s["patch_distance_ratio"], "<= 1.5", s["patch_distance_ratio"] <= 1.5))
             fo, fs = s["flicker_output"], s["flicker_source"]
             ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
