@@ -58,6 +58,31 @@ def _plot(res, mism: np.ndarray, path: Path) -> None:
     save_figure(fig, path)
 
 
+def with_inset(frames: np.ndarray, masks: np.ndarray, half: int = 40, zoom: int = 3) -> np.ndarray:
+    """Frames (T, H, W, 3) with a ``zoom``x close-up of the object (centred on ``masks`` (T, H, W))
+    in a lower corner (right, or left when the object is there), so the outlines can be compared
+    in a compressed video."""
+    import cv2
+
+    out = frames.copy()
+    T, H, W = masks.shape
+    side = 2 * half * zoom
+    if side + 8 > min(H, W):
+        return out
+    for k in range(T):
+        ys, xs = np.nonzero(masks[k])
+        if ys.size == 0:
+            continue
+        cy = int(np.clip(round(ys.mean()), half, H - half))
+        cx = int(np.clip(round(xs.mean()), half, W - half))
+        crop = frames[k, cy - half:cy + half, cx - half:cx + half]
+        big = cv2.resize(crop, (side, side), interpolation=cv2.INTER_NEAREST)
+        x0 = 4 if (cx > W - side - 4 - half and cy > H - side - 4 - half) else W - side - 4  # never over the object
+        out[k, H - side - 4:H - 4, x0:x0 + side] = big
+        cv2.rectangle(out[k], (x0 - 1, H - side - 5), (x0 + side, H - 4), (255, 255, 255), 1)
+    return out
+
+
 def run(cfg: DictConfig) -> None:
     validate_rigid(cfg.rigid)
     if not cfg.paths.footage:
@@ -92,7 +117,7 @@ def run(cfg: DictConfig) -> None:
     d["mismatch_px"] = mism.tolist()
     d["inputs"] = {"footage": str(fo.path), "masks": str(mpath), "fit_settings": asdict(fc)}
     write_yaml(out / "fit.yaml", d)
-    ov = overlay(fo.frames[res.frames], sim, obs)
+    ov = with_inset(overlay(fo.frames[res.frames], sim, obs), obs | sim)
     fps = float(fo.meta.get("fps", 1.0 / np.median(np.diff(times))))
     write_animation(out / f"overlay.{cfg.rigid.overlay}", ov, fps)
     _plot(res, mism, out / "errors.png")
