@@ -153,12 +153,28 @@ def _missing_footage(d):
     d["footage"] = "synthetic:waterfall"  # never made in this results folder
 
 
-CASES = [
+LOADER_CASES = [
     ("unknown key", _unknown_key, "sources[0]: unknown key(s) ['colour']"),
     ("constraint outside the frame", _constraint_outside, "constraints[0].paste.to (pasted box)=[30, 30, 34, 34] lies outside"),
     ("no reachable sink", _walled_off, "sink 'outflow' cannot be reached from the source"),
-    ("missing footage folder", _missing_footage, "fluid_waterfall: footage folder is missing"),
 ]
+# through the real stage process (one line on stderr, exit code 2, nothing written)
+CASES = [LOADER_CASES[0], LOADER_CASES[2], ("missing footage folder", _missing_footage, "fluid_waterfall: footage folder is missing")]
+
+
+@pytest.mark.parametrize("name,mutate,expected", LOADER_CASES, ids=[c[0] for c in LOADER_CASES])
+def test_edit_loader_names_file_and_key(tmp_path, name, mutate, expected):
+    from vidsim.cli.fluid_edit import load_edit
+    from vidsim.errors import ConfigError
+
+    d = _bad(EDIT)
+    mutate(d)
+    spec = tmp_path / "bad.yaml"
+    spec.write_text(yaml.safe_dump(d))
+    with pytest.raises(ConfigError) as e:
+        load_edit(spec)
+    assert str(e.value).startswith(f"{spec}: ") and expected in str(e.value)
+    assert "\n" not in str(e.value)
 
 
 @pytest.mark.parametrize("name,mutate,expected", CASES, ids=[c[0] for c in CASES])
