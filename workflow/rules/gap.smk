@@ -1,1 +1,95 @@
-# sim-to-real gap stages (wired in this file only; see workflow/rules/demo.smk for the pattern).
+# Sim-to-real gap (issue 7): where the gap of a fit lies, which unmodelled effect causes it, how far
+# it shrinks. What runs: `gap:` in the Snakemake config -- suite_cases (names of entries of
+# conf/gap/default.yaml `cases`; empty list = all), diagnose_cases (rigid cases of `rigid.cases`
+# whose fit is diagnosed), ball (the real toss, both timings). How: Hydra (`gap.*`; per-rule
+# `overrides: {gap_suite: ..., diagnose_rigid: ..., gap_ball: ...}`).
+# Layout: {RESULTS}/gap/suite/{suite.json,confusion.*,shrinkage.csv,suite.rrd,cases/},
+# {RESULTS}/gap/rigid_{case}/{diagnosis.json,diagnosis.png,diagnosis.rrd}, {RESULTS}/gap/ball/.
+GAP = config.get("gap", {}) or {}
+GAP_SUITE_ONLY = ",".join(str(c) for c in (GAP.get("suite_cases", []) or []))
+GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
+
+
+if stage_enabled("gap"):
+    TARGETS["gap"] = [f"{RESULTS}/gap/suite/suite.json", f"{RESULTS}/gap/suite/confusion.png"]
+    TARGETS["gap"] += [f"{RESULTS}/gap/rigid_{c}/diagnosis.json" for c in GAP_DIAGNOSE]
+    if GAP.get("ball", False):
+        TARGETS["gap"] += [f"{RESULTS}/gap/ball/ball_gap.json"]
+
+
+rule gap_suite:
+    """Withheld-effect suite: film each case, fit it, diagnose it blind, score the diagnosis against the truth."""
+    output:
+        suite=f"{RESULTS}/gap/suite/suite.json",
+        confusion=report(
+            f"{RESULTS}/gap/suite/confusion.png", caption="../report/gap_confusion.rst", category="Sim-to-real gap"
+        ),
+        shrinkage=report(
+            f"{RESULTS}/gap/suite/shrinkage.csv", caption="../report/gap_shrinkage.rst", category="Sim-to-real gap"
+        ),
+        rrd=f"{RESULTS}/gap/suite/suite.rrd",
+    params:
+        out=get_out_dir,
+        only=f"gap.only=[{GAP_SUITE_ONLY}]",
+        extra=stage_overrides("gap_suite"),
+    log:
+        f"{RESULTS}/logs/gap_suite.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1200,  # measured peak RSS: see docs/gap.md
+        runtime=60,
+    shell:
+        "python -m vidsim.cli.gap_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
+
+
+rule diagnose_rigid:
+    """Blind diagnosis of a rigid case's fit: where the gap lies, which effect, how far it shrinks."""
+    input:
+        meta=f"{RESULTS}/footage/rigid_{{case}}/meta.yaml",
+        masks=f"{RESULTS}/rigid/{{case}}/masks.npz",
+        fit=f"{RESULTS}/rigid/{{case}}/fit.yaml",
+    output:
+        diagnosis=f"{RESULTS}/gap/rigid_{{case}}/diagnosis.json",
+        plot=report(
+            f"{RESULTS}/gap/rigid_{{case}}/diagnosis.png",
+            caption="../report/gap_diagnosis.rst",
+            category="Sim-to-real gap",
+            subcategory="{case}",
+        ),
+        rrd=f"{RESULTS}/gap/rigid_{{case}}/diagnosis.rrd",
+    params:
+        out=get_out_dir,
+        extra=stage_overrides("diagnose_rigid"),
+    log:
+        f"{RESULTS}/logs/gap_rigid_{{case}}_diagnose.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1200,  # measured peak RSS: see docs/gap.md
+        runtime=20,
+    shell:
+        "python -m vidsim.cli.diagnose paths.footage=$(dirname {input.meta}) gap.paths.masks={input.masks} "
+        "gap.paths.fit={input.fit} paths.out={params.out} {params.extra} > {log} 2>&1"
+
+
+rule gap_ball:
+    """The real toss read with the container's timestamps and at a constant rate: is frame timing the gap?"""
+    input:
+        video=SHARED / "tracklab_physics" / "verticalToss.webm",
+    output:
+        gap=f"{RESULTS}/gap/ball/ball_gap.json",
+        plot=report(f"{RESULTS}/gap/ball/ball_gap.png", caption="../report/gap_ball.rst", category="Sim-to-real gap"),
+        rrd=f"{RESULTS}/gap/ball/ball_gap.rrd",
+    params:
+        out=get_out_dir,
+        extra=stage_overrides("gap_ball"),
+    log:
+        f"{RESULTS}/logs/gap_ball.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=900,
+        runtime=5,
+    shell:
+        "python -m vidsim.cli.gap_ball rigid.paths.video={input.video} paths.out={params.out} {params.extra} > {log} 2>&1"
