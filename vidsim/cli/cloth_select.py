@@ -67,6 +67,9 @@ def run(cfg: DictConfig) -> None:
         "total": float(sum(errs)), "trials": [tr.name for tr in trials], "fits": fits,
         "start": docs[0].get("start", {}).get("params"),
         "per_fit_best": {tr.name: {"params": d["params"], "score": d["score"]} for tr, d in zip(trials, docs)},
+        "rows": [{"candidate": lab, "params": {n: float(th.get(n, getattr(params, n))) for n in names},
+                  "errors": {tr.name: float(e) for tr, e in zip(trials, es)}, "total": float(sum(es)),
+                  "chosen": j == best} for j, (lab, th, es) in enumerate(rows)],
     })
     print(f"select_cloth: chose {label} with E1+E2 = {sum(errs):.4g} of {len(rows)} candidates", flush=True)
 

@@ -68,26 +68,33 @@ def run(cfg: DictConfig) -> None:
     ax.set_title(f"error / column minimum; diagonal wins {sum(wins)}/{n}", fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8)
     save_figure(fig, out / "matrix.png")
-    # Table 1
+    # Table 1: per fabric the grid start, every candidate with its error on each trial (own and
+    # cross) and their sum, the selected row marked
     rows = []
     for fab, s in zip(fabrics, sel):
+        short = {t: t.replace(f"cloth_{fab}_", "") for t in s["trials"]}
         if s.get("start"):
-            rows.append((fab, "start", s["start"], None))
-        for tname, b in s["per_fit_best"].items():
-            rows.append((fab, f"opt {tname}", b["params"], None))
-        rows.append((fab, f"selected ({s['chosen']})", s["params"], s["errors"]))
-    hdr = "fabric,set," + ",".join(SHOWN) + ",E_trials\n"
+            rows.append((fab, "start (grid best)", s["start"], {}, None))
+        for r in s.get("rows", []):
+            trial, _, k = r["candidate"].partition("#")
+            name = f"opt {short.get(trial, trial)}" + (f" #{k}" if k not in ("", "0") else "") + (" *" if r["chosen"] else "")
+            rows.append((fab, name, r["params"], {short.get(t, t): e for t, e in r["errors"].items()}, r["total"]))
+    trials = sorted({t for *_, errs, _ in rows for t in errs})
+    hdr = "fabric,set," + ",".join(SHOWN) + "," + ",".join(f"E_{t}" for t in trials) + ",E_sum\n"
     lines = [f"{fab},{name}," + ",".join(f"{float(p[k]):.4g}" for k in SHOWN) + "," +
-             (" ".join(f"{t}={e:.4g}" for t, e in errs.items()) if errs else "") + "\n" for fab, name, p, errs in rows]
+             ",".join(f"{errs[t]:.4g}" if t in errs else "" for t in trials) + "," + (f"{tot:.4g}" if tot is not None else "") + "\n"
+             for fab, name, p, errs, tot in rows]
     write_text(out / "table1.csv", hdr + "".join(lines))
-    fig, ax = plt.subplots(figsize=(11, 0.32 * len(rows) + 0.8))
+    fig, ax = plt.subplots(figsize=(12, 0.3 * len(rows) + 0.9))
     ax.axis("off")
-    cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in SHOWN] +
-             [" ".join(f"{e:.3g}" for e in errs.values()) if errs else ""] for fab, name, p, errs in rows]
-    tb = ax.table(cellText=cells, colLabels=["fabric", "set", *SHOWN, "E per trial"], loc="center", cellLoc="center")
+    cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in SHOWN] + [f"{errs[t]:.3g}" if t in errs else "" for t in trials] +
+             [f"{tot:.3g}" if tot is not None else ""] for fab, name, p, errs, tot in rows]
+    tb = ax.table(cellText=cells, colLabels=["fabric", "set", *SHOWN, *[f"E {t}" for t in trials], "E sum"], loc="center",
+                  cellLoc="center")
     tb.auto_set_font_size(False)
     tb.set_fontsize(7)
     tb.scale(1, 1.2)
+    ax.set_title("Table 1 (* = selected: least E sum over the trials)", fontsize=9)
     save_figure(fig, out / "table1.png")
     write_yaml(out / "validation.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
                                          "of": n, "wins_per_footage": dict(zip(fabrics, wins))})

@@ -7,7 +7,9 @@ CLOTH = config.get("cloth", {}) or {}
 CLOTH_FABRICS = list(CLOTH.get("fabrics", ["linen", "satin"]))
 CLOTH_FIT_TRIALS = list(CLOTH.get("fit_trials", ["exp1", "exp2"]))
 CLOTH_HELD_OUT = CLOTH.get("held_out", "robot")
-CLOTH_HYDRA = CLOTH.get("hydra", "") or ""
+CLOTH_HYDRA = CLOTH.get("hydra", "") or ""  # fit_cloth, select_cloth, validate_cloth
+CLOTH_REALITY_HYDRA = CLOTH.get("reality_hydra", "") or ""  # reality_cloth
+CLOTH_CAL_HYDRA = CLOTH.get("calibration_hydra", "") or ""  # the cloth scene's calibration
 CLOTH_CAL = f"{RESULTS}/calibration/cloth/calibration.yaml"
 
 include: "cloth_functions.smk"
@@ -37,7 +39,9 @@ use rule calibrate_scene as calibrate_cloth_scene with:
         rrd=f"{RESULTS}/calibration/cloth/calibrate.rrd",
     params:
         out=get_out_dir,
-        extra=f"{stage_overrides('calibrate_scene')} camera=cloth projector=cloth calibrate=cloth {CLOTH_HYDRA}",
+        extra=f"{stage_overrides('calibrate_scene')} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA}",
+    benchmark:
+        f"{RESULTS}/benchmarks/calibrate_cloth.tsv"
     log:
         f"{RESULTS}/logs/calibrate_cloth.log",
 
@@ -63,8 +67,10 @@ rule reality_cloth:
     params:
         out=get_out_dir,
         extra=stage_overrides("reality_cloth"),
-        cloth=CLOTH_HYDRA,
-        fabric=cloth_fabric_overrides,
+        cloth=CLOTH_REALITY_HYDRA,
+        fabric=cloth_fabric_reality_overrides,
+    benchmark:
+        f"{RESULTS}/benchmarks/reality_cloth_{{fabric}}_{{trial}}.tsv"
     log:
         f"{RESULTS}/logs/reality_cloth_{{fabric}}_{{trial}}.log",
     conda:
@@ -97,6 +103,8 @@ rule fit_cloth:
         extra=stage_overrides("fit_cloth"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
+    benchmark:
+        f"{RESULTS}/benchmarks/fit_cloth_{{fabric}}_{{trial}}.tsv"
     log:
         f"{RESULTS}/logs/fit_cloth_{{fabric}}_{{trial}}.log",
     conda:
@@ -128,6 +136,8 @@ rule select_cloth:
         extra=stage_overrides("select_cloth"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
+    benchmark:
+        f"{RESULTS}/benchmarks/select_cloth_{{fabric}}.tsv"
     log:
         f"{RESULTS}/logs/select_cloth_{{fabric}}.log",
     conda:
@@ -170,6 +180,8 @@ rule validate_cloth:
         inputs=cloth_validate_inputs,
         extra=stage_overrides("validate_cloth"),
         cloth=CLOTH_HYDRA,
+    benchmark:
+        f"{RESULTS}/benchmarks/validate_cloth.tsv"
     log:
         f"{RESULTS}/logs/validate_cloth.log",
     conda:

@@ -19,5 +19,11 @@ def cloth_validate_inputs(wildcards, input):
 
 
 def cloth_fabric_overrides(wildcards):
-    """Hydra overrides of one fabric (the `cloth.per_fabric` map): only its jobs see a change."""
+    """Hydra overrides of one fabric's fit/select jobs (the `cloth.per_fabric` map): only that
+    fabric's fits, its selection and the validation rerun when it changes."""
     return (CLOTH.get("per_fabric", {}) or {}).get(wildcards.fabric, "") or ""
+
+
+def cloth_fabric_reality_overrides(wildcards):
+    """Hydra overrides of one fabric's reality (the `cloth.per_fabric_reality` map), e.g. effects."""
+    return (CLOTH.get("per_fabric_reality", {}) or {}).get(wildcards.fabric, "") or ""
