@@ -4,5 +4,7 @@ Modules: ``body`` (box-union bodies, the T-object), ``dynamics`` (Newton-Euler R
 variational-equation sensitivities), ``silhouette`` (smoothed silhouette mismatch and its
 image-space pose gradient), ``fit`` (hybrid-gradient multi-start estimation), ``evaluate``
 (scoring against a synthetic truth), ``ballistic`` (real ball free flight), ``outputs``
-(overlays, paths) and ``stage`` (stage-level drivers).
+(overlays, paths, the ``fit.yaml`` and ``masks.npz`` formats) and ``stage`` (stage-level drivers).
+The command-line stages are ``vidsim.cli.{reality_rigid,segment,fit_rigid,score_rigid,
+rigid_summary,rigid_ball}``.
 """

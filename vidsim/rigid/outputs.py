@@ -1,6 +1,12 @@
-"""Products of a rigid-body fit for reports and logs: simulated silhouettes, overlays, 3D paths.
+"""Products of a rigid-body fit for reports and logs: simulated silhouettes, overlays, 3D paths,
+and the two file formats other stages build on.
 
-Pure functions returning arrays; writing them (PNG, Rerun, YAML) is the caller's business.
+* ``fit.yaml``: :func:`fit_to_dict` / :func:`fit_from_dict` (exact round trip through YAML);
+* ``masks.npz``: ``masks`` (N, H, W) bool, ``times`` (N,) float seconds (:func:`masks_from_npz`
+  validates a loaded file: ``masks_from_npz(np.load(path))``).
+
+Pure functions returning arrays and dictionaries; writing them (PNG, Rerun, YAML) is the caller's
+business.
 """
 
 from __future__ import annotations
