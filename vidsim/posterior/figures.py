@@ -22,20 +22,19 @@ def corner_figure(samples: np.ndarray, names: list[str], units: list[str] | None
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     S = np.asarray(samples, float)
     N, D = S.shape
     step = max(1, N // max_points)
     T = S[::step]
-    fig, axes = plt.subplots(D, D, figsize=(1.25 * D + 1, 1.25 * D + 1))
-    axes = np.atleast_2d(axes)
+    size = 1.1 * D + 1
+    fig = plt.figure(figsize=(size, size))
+    m0, cell = 0.8 / size, (1 - 1.0 / size) / D  # only the lower triangle gets axes (fast)
     q = np.percentile(S, [5, 50, 95], axis=0)
     for i in range(D):
-        for j in range(D):
-            ax = axes[i, j]
-            if j > i:
-                ax.axis("off")
-                continue
+        for j in range(i + 1):
+            ax = fig.add_axes((m0 + j * cell, 1 - 0.35 / size - (i + 1) * cell, 0.95 * cell, 0.95 * cell))
             if i == j:
                 ax.hist(S[:, i], bins=bins, color="0.4", histtype="step")
                 for v, ls in zip(q[:, i], ("--", "-", "--")):
@@ -46,23 +45,25 @@ def corner_figure(samples: np.ndarray, names: list[str], units: list[str] | None
                     ax.axvline(truth[i], color="b", lw=0.8)
                 ax.set_yticks([])
             else:
-                ax.plot(T[:, j], T[:, i], ",", color="0.2", alpha=0.5)
+                ax.plot(T[:, j], T[:, i], ",", color="0.2", alpha=0.5, rasterized=True)
                 if point is not None:
                     ax.plot(point[j], point[i], "r+", ms=6)
                 if truth is not None:
                     ax.plot(truth[j], truth[i], "bx", ms=5)
-            ax.tick_params(labelsize=5)
             if i == D - 1:
+                ax.xaxis.set_major_locator(MaxNLocator(2))
+                ax.tick_params(labelsize=5, rotation=45)
                 ax.set_xlabel(names[j] + (f" [{units[j]}]" if units else ""), fontsize=6)
             else:
-                ax.set_xticklabels([])
+                ax.set_xticks([])
             if j == 0 and i > 0:
+                ax.yaxis.set_major_locator(MaxNLocator(2))
+                ax.tick_params(labelsize=5)
                 ax.set_ylabel(names[i] + (f" [{units[i]}]" if units else ""), fontsize=6)
-            elif j > 0:
-                ax.set_yticklabels([])
+            elif i != j:
+                ax.set_yticks([])
     fig.suptitle("posterior (black: 5/50/95 %" + (", red: estimate" if point is not None else "")
                  + (", blue: truth" if truth is not None else "") + ")", fontsize=8)
-    fig.subplots_adjust(wspace=0.05, hspace=0.05)
     return fig
 
 
