@@ -16,7 +16,7 @@ interest around the body, at a reduced image scale; the *gap* is the mean per fr
    dynamics) -- the error that no motion model can remove with this renderer and these masks
    (rendering + segmentation noise). The base gap minus this floor is the *dynamics* part; the
    floor itself is the *rendering/camera* part plus noise.
-4. Screen (score test at zero): for each candidate block ``e`` with Jacobian ``J_e`` the
+4. Screen (score test at zero, all frames, at the base refit): for each candidate block ``e`` with Jacobian ``J_e`` the
    first-order decrease of the training sum of squares after re-optimising the base parameters,
    ``D_e = g^T M^+ g`` with ``g = J_e^T r`` and ``M = J_e^T (I - P_theta) J_e``.
 5. Refit the best ``top_k`` candidates (one at a time, then pairs of the supported ones) and judge
@@ -489,11 +489,12 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     floor = _free_pose_gap(base, obs, roi, theta_b, test)
     floor_train = _free_pose_gap(base, obs, roi, theta_b, train[:: max(1, len(train) // 8)])
     note("noise floor")
-    # 4. screen: score test at the given fit on all frames (the base parameters projected out)
+    # 4. screen: score test on all frames at the base refit (interleaved training frames make it
+    # nearly the all-frame optimum; the base parameters are projected out to first order)
     cands = [c for c in cfg.candidates]
     allf = np.arange(T)
     pall = problem(tuple(cands), allf)
-    theta_ext = np.r_[p0, np.zeros(pall.model.n_params - 14)]
+    theta_ext = np.r_[theta_b, np.zeros(pall.model.n_params - 14)]
     Jall = pall.jacobian(theta_ext) * pall.model.x_scale()
     r = pall.residual(theta_ext)
     blocks = {c: Jall[:, pall.model.slices[c]] for c in cands}
