@@ -104,12 +104,17 @@ def run(cfg: DictConfig) -> None:
     if not masks.any():
         raise RigidStageError(f"{mpath}: empty silhouette in every one of the {len(masks)} frames: nothing to fit")
     fc = fit_config(cfg.rigid.fit, g)
-    prog = Progress(1, "fit_rigid", enabled=cfg.log.progress)
+    prog: list[Progress] = []
+
+    def on_step(done: int, total: int, note: str) -> None:
+        if not prog:
+            prog.append(Progress(total, "fit_rigid (starts x stages)", enabled=cfg.log.progress))
+        prog[0].update(note=note)
+
     try:
-        res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc)
+        res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc, on_step=on_step)
     except RigidBodyError as e:
         raise RigidStageError(f"{meta_path} / {mpath}: {e}") from e
-    prog.update(note=f"{res.n_starts} starts, mean IoU {res.mean_iou:.3f}")
     sim = simulated_masks(res, body, cam)
     obs = masks[res.frames]
     mism = (sim ^ obs).reshape(len(sim), -1).sum(1)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import cv2
 import numpy as np
@@ -407,7 +408,8 @@ def visible_frames(masks: np.ndarray, min_pixels: int = 20) -> np.ndarray:
 
 
 def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, guess: dict,
-              cfg: FitConfig | dict | None = None) -> FitResult:
+              cfg: FitConfig | dict | None = None,
+              on_step: Callable[[int, int, str], None] | None = None) -> FitResult:
     """Estimate initial state and gravity direction of a throw from its silhouettes.
 
     Args:
@@ -420,6 +422,8 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
             roll, t0}`` at time ``t0`` (default: the first fitted frame) -- the seed's user-given
             approximate initial state.
         cfg: :class:`FitConfig` or a mapping of its fields.
+        on_step: called after every optimised stage of a start as ``on_step(done, total, note)``
+            (``total`` is an upper bound: the final polish may skip candidates); for progress.
 
     Returns:
         :class:`FitResult`.
@@ -455,11 +459,21 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     R_guess = quat_to_rot(q_guess)
     starts = start_orientations(R_guess, body.symmetries, cfg.multistart)
     pool = [(FAIL_COST, i, p_guess.copy(), rot_to_quat(R), []) for i, R in enumerate(starts)]
+    keep = [min(k, len(starts)) for k in cfg.screen_keep]
+    total = len(starts) + sum(keep[:-1]) + (keep[-1] if keep else len(starts)) * (len(cfg.refine) + len(cfg.final))
+    done = 0
+
+    def step(note: str) -> None:
+        nonlocal done
+        done += 1
+        if on_step is not None:
+            on_step(done, total, note)
     for st, keep in zip(cfg.screen, cfg.screen_keep):
         nxt = []
         for E, i, p, q, hist in pool:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
             nxt.append((E, i, p, q, hist + h))
+            step(f"screen start {i} at scale {st.scale}: {E:.1f}")
         nxt.sort(key=lambda s: s[0])
         pool = nxt[:keep]
     refined = []
@@ -467,6 +481,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         for st in cfg.refine:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
             hist = hist + h
+            step(f"refine start {i} at scale {st.scale}: {E:.1f}")
         refined.append((E, i, p, q, hist))
     E_best = min(r[0] for r in refined)
     cands: list[Candidate] = []
@@ -475,6 +490,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
             for st in cfg.final:
                 p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
                 hist = hist + h
+                step(f"polish start {i} at scale {st.scale}: {E:.1f}")
         iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax, cfg.gravity)
         cands.append(Candidate(p, q, float(E), float(iou.mean()), iou, hist, i))
     cands.sort(key=lambda c: (-c.mean_iou, c.cost))
