@@ -51,13 +51,13 @@ def test_twin_fit_and_resume_by_replay(twin_footage):
     out = res / "cloth" / "fit" / "twin_exp1"
     others = {k: v for k, v in truth["params"].items() if k not in ("stretch", "density")}
     args = [f"paths.results={res}", f"paths.footage={fp}", f"paths.out={out}", "cloth.model.resolution=10",
-            "cloth.model.settle_s=0.5", "cloth.fit.space={stretch: {lo: 20.0, hi: 4000.0, log: true}}",
-            "cloth.fit.fixed={" + ", ".join(f"{k}: {v}" for k, v in others.items()) + "}",
+            "cloth.model.settle_s=0.5", "cloth.fit.estimate=[stretch]",
+            *[f"+cloth.fit.fixed.{k}={v}" for k, v in others.items()],
             "cloth.fit.grid_params=[stretch]", "cloth.fit.grid_levels=4", "cloth.fit.budget=8", "cloth.fit.evals_per_T=4",
             "cloth.fit.step=0.1"]
     _run("vidsim.cli.cloth_fit", *args)
     fit = yaml.safe_load((out / "fit.yaml").read_text())
-    assert fit["n_new_simulations"] == fit["n_evals"] > 0
+    assert 0 < fit["n_new_simulations"] <= fit["n_evals"]  # repeats within a run are cache hits too
     # stretch within a factor 2 of the twin's truth (300 N/m) from a 20-4000 N/m box
     assert abs(np.log(fit["params"]["stretch"] / truth["params"]["stretch"])) < np.log(2.0), fit["params"]
     # a second run of the stage (as after a kill) replays the log and simulates nothing

@@ -71,7 +71,12 @@ def fixed_params(cfg: DictConfig) -> dict[str, float]:
 
 def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
     """The objective of ``cloth.fit``/``cloth.model`` over ``trials`` (errors summed)."""
-    space = space_from_config(OmegaConf.to_container(cfg.cloth.fit.space, resolve=True))
+    full = OmegaConf.to_container(cfg.cloth.fit.space, resolve=True)
+    est = list(cfg.cloth.fit.estimate) or list(full)
+    bad = [n for n in est if n not in full]
+    if bad:
+        raise ClothStageError(f"cloth.fit.estimate {bad} are not in cloth.fit.space {list(full)}")
+    space = space_from_config({n: full[n] for n in est})
     m = cfg.cloth.model
     return ClothObjective(trials, space, fixed=fixed_params(cfg),
                           model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s), integrator=str(m.integrator)),

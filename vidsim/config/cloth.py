@@ -170,7 +170,9 @@ class ClothFitConfig:
     the grid (annealing or CMA-ES). Annealing schedule: ``cooling`` per ``evals_per_T``
     evaluations, simplex ``step``/``min_step`` in the unit cube, reset at factor 3.
     ``method``: ``anneal`` or ``cmaes``; ``n_candidates``: best distinct points a fit hands to
-    the cross-trial selection.
+    the cross-trial selection; ``estimate``: the names of ``space`` to estimate (empty = all; the
+    rest stay at ``fixed`` or mid-range). Hydra merges dict overrides, so narrow the space with
+    ``estimate=[...]`` and set known values with ``+cloth.fit.fixed.<name>=<value>``.
     """
 
     space: dict[str, Any] = field(default_factory=_default_space)
@@ -187,6 +189,7 @@ class ClothFitConfig:
     seed: int = 0
     method: str = "anneal"
     n_candidates: int = 3
+    estimate: list[str] = field(default_factory=list)
 
 
 @dataclass
