@@ -1,0 +1,50 @@
+"""The gap stages on bad input: exit code 2, one line naming the file, key or value, no output left."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from vidsim.io.footage import write_footage
+from vidsim.rigid.body import t_object
+from vidsim.video.camera import PinholeCamera, intrinsics
+
+
+def _run(mod: str, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", mod, f"paths.results={cwd}", "log.rerun=false", *args],
+                          capture_output=True, text=True, timeout=120)
+
+
+def _one_line(p: subprocess.CompletedProcess) -> str:
+    assert p.returncode == 2, p.stderr[-2000:]
+    lines = [x for x in p.stderr.strip().splitlines() if x.strip()]
+    assert len(lines) == 1 and "Traceback" not in p.stderr, p.stderr[-2000:]
+    return lines[0]
+
+
+def test_diagnose_missing_footage_and_fit(tmp_path):
+    line = _one_line(_run("vidsim.cli.diagnose", f"paths.out={tmp_path}/d", f"paths.footage={tmp_path}/nope",
+                          f"gap.paths.masks={tmp_path}/m.npz", f"gap.paths.fit={tmp_path}/fit.yaml", cwd=tmp_path))
+    assert "nope" in line and "missing" in line
+    fo = tmp_path / "fo"
+    cam = PinholeCamera(intrinsics(60.0, None, 31.5, 23.5), width=64, height=48)
+    write_footage(fo, np.zeros((10, 48, 64, 3), np.uint8), np.arange(10) / 30.0, {"camera": cam},
+                  {"object": t_object()[0].to_meta()})
+    np.savez(tmp_path / "m.npz", masks=np.zeros((10, 48, 64), bool), times=np.arange(10) / 30.0)
+    (tmp_path / "fit.yaml").write_text("position: [0, 0, 3]\nquaternion: [1, 0, 0, 0]\n")
+    line = _one_line(_run("vidsim.cli.diagnose", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.masks={tmp_path}/m.npz", f"gap.paths.fit={tmp_path}/fit.yaml", cwd=tmp_path))
+    assert "fit.yaml" in line and "velocity" in line
+    assert not (tmp_path / "d").exists()
+
+
+def test_suite_unknown_case_and_bad_candidate(tmp_path):
+    line = _one_line(_run("vidsim.cli.gap_suite", f"paths.out={tmp_path}/s", "gap.only=[no_such_case]", cwd=tmp_path))
+    assert "no_such_case" in line
+    line = _one_line(_run("vidsim.cli.gap_suite", f"paths.out={tmp_path}/s", "gap.only=[null_a]",
+                          "gap.diagnose.candidates=[lens_k1,warp_drive]", cwd=tmp_path))
+    assert "warp_drive" in line
+    assert not (tmp_path / "s").exists()
