@@ -104,12 +104,11 @@ def run(cfg: DictConfig) -> None:
     if not masks.any():
         raise RigidStageError(f"{mpath}: empty silhouette in every one of the {len(masks)} frames: nothing to fit")
     fc = fit_config(cfg.rigid.fit, g)
-    prog: list[Progress] = []
+    prog = Progress(1, "fit_rigid (work units)", enabled=cfg.log.progress)
 
     def on_step(done: int, total: int, note: str) -> None:
-        if not prog:
-            prog.append(Progress(total, "fit_rigid (starts x stages)", enabled=cfg.log.progress))
-        prog[0].update(note=note)
+        prog.total = total
+        prog.update(done - prog.i, note=note)
 
     try:
         res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc, on_step=on_step)

@@ -422,8 +422,9 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
             roll, t0}`` at time ``t0`` (default: the first fitted frame) -- the seed's user-given
             approximate initial state.
         cfg: :class:`FitConfig` or a mapping of its fields.
-        on_step: called after every optimised stage of a start as ``on_step(done, total, note)``
-            (``total`` is an upper bound: the final polish may skip candidates); for progress.
+        on_step: called after every optimised stage of a start as ``on_step(done, total, note)``, in
+            work units (scale^2 x frames x iterations, integers); ``total`` is an upper bound (the
+            final polish may skip candidates). For progress lines.
 
     Returns:
         :class:`FitResult`.
@@ -459,13 +460,18 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     R_guess = quat_to_rot(q_guess)
     starts = start_orientations(R_guess, body.symmetries, cfg.multistart)
     pool = [(FAIL_COST, i, p_guess.copy(), rot_to_quat(R), []) for i, R in enumerate(starts)]
-    keep = [min(k, len(starts)) for k in cfg.screen_keep]
-    total = len(starts) + sum(keep[:-1]) + (keep[-1] if keep else len(starts)) * (len(cfg.refine) + len(cfg.final))
+    def work(st: Stage) -> int:
+        n = len(ft) if st.frames is None else min(st.frames, len(ft))
+        return max(1, int(round(st.scale ** 2 * n * st.maxiter)))
+
+    n_pool = [len(starts)] + [min(k, len(starts)) for k in cfg.screen_keep]
+    total = sum(n * work(st) for n, st in zip(n_pool, cfg.screen))
+    total += n_pool[-1] * sum(work(st) for st in cfg.refine + cfg.final)
     done = 0
 
-    def step(note: str) -> None:
+    def step(st: Stage, note: str) -> None:
         nonlocal done
-        done += 1
+        done += work(st)
         if on_step is not None:
             on_step(done, total, note)
     for st, keep in zip(cfg.screen, cfg.screen_keep):
@@ -473,7 +479,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         for E, i, p, q, hist in pool:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
             nxt.append((E, i, p, q, hist + h))
-            step(f"screen start {i} at scale {st.scale}: {E:.1f}")
+            step(st, f"screen start {i} at scale {st.scale}: {E:.1f}")
         nxt.sort(key=lambda s: s[0])
         pool = nxt[:keep]
     refined = []
@@ -481,7 +487,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         for st in cfg.refine:
             p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
             hist = hist + h
-            step(f"refine start {i} at scale {st.scale}: {E:.1f}")
+            step(st, f"refine start {i} at scale {st.scale}: {E:.1f}")
         refined.append((E, i, p, q, hist))
     E_best = min(r[0] for r in refined)
     cands: list[Candidate] = []
@@ -490,7 +496,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
             for st in cfg.final:
                 p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
                 hist = hist + h
-                step(f"polish start {i} at scale {st.scale}: {E:.1f}")
+                step(st, f"polish start {i} at scale {st.scale}: {E:.1f}")
         iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax, cfg.gravity)
         cands.append(Candidate(p, q, float(E), float(iou.mean()), iou, hist, i))
     cands.sort(key=lambda c: (-c.mean_iou, c.cost))
