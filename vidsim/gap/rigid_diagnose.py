@@ -212,7 +212,9 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15) -> tuple[np.nda
     xs = prob.model.x_scale()
     lo = (prob.model.lower() - theta0) / xs
     x0 = np.zeros(prob.model.n_params)
-    x0 = np.maximum(x0, lo + 1e-12)
+    # a parameter starting on its bound cannot move under the trust-region's bound scaling
+    # (Coleman-Li): start bounded ones a quarter of their typical size inside
+    x0 = np.where(np.isfinite(lo), np.maximum(x0, lo + 0.25), x0)
 
     def fun(x: np.ndarray) -> np.ndarray:
         return prob.residual(theta0 + x * xs)
