@@ -110,8 +110,8 @@ rule fit_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,  # measured peak RSS 410 MB (12x12 model, 25 frames at 320x240)
-        runtime=30,
+        mem_mb=1000,  # measured peak RSS 407 MB quick (12x12, 25 frames), 494 MB full (20x20, 50 frames)
+        runtime=90,  # quick: 32 CPU-s per 56 evaluations; full (664 evaluations) ~19 CPU-min extrapolated
     shell:
         "python -m vidsim.cli.cloth_fit paths.footage=$(dirname {input.meta}) paths.out={params.out} "
         "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
@@ -143,7 +143,7 @@ rule select_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,  # measured peak RSS 420 MB
+        mem_mb=1000,  # measured peak RSS ~310 MB (Snakemake benchmark sampling)
         runtime=20,
     shell:
         "python -m vidsim.cli.cloth_select paths.out={params.out} {params.inputs} "
@@ -187,7 +187,7 @@ rule validate_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1000,  # measured peak RSS 430 MB
+        mem_mb=1000,  # measured peak RSS ~280 MB (Snakemake benchmark sampling)
         runtime=20,
     shell:
         "python -m vidsim.cli.cloth_validate paths.out={params.out} {params.inputs} "
