@@ -32,16 +32,19 @@ def feature_settings(cfg: DictConfig) -> FeatureSettings:
     return FeatureSettings(**OmegaConf.to_container(cfg.cloth.features, resolve=True))
 
 
-def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None) -> Trial:
+def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, with_frames: bool = False
+               ) -> Trial | tuple[Trial, np.ndarray]:
     """Read a cloth footage folder and extract its features (silhouettes from the footage itself).
 
     Args:
         folder: footage folder written by ``reality_cloth`` (frames, times, calibration, meta).
         cfg: the stage config (``cloth.features``, ``cloth.model.frame_stride/max_frames``).
         name: trial label (default: the folder name).
+        with_frames: also return the trial's (T, H, W, 3) uint8 footage frames (for logging).
 
     Returns:
-        The (strided) trial with the *calibrated* camera and projector of the folder.
+        The (strided) trial with the *calibrated* camera and projector of the folder
+        (and its frames with ``with_frames``).
     """
     fp = read_footage(folder, required_meta=REQUIRED_META)
     meta = fp.meta
@@ -61,7 +64,13 @@ def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None) -> 
     feats = extract_features(fp.frames, bg, fs)
     tr = Trial(name or Path(folder).name, feats, fp.times[cloth_idx], cp, fp.camera, proj, float(meta["size_m"]),
                float(meta["areal_density"]))
-    return tr.strided(int(cfg.cloth.model.frame_stride), int(cfg.cloth.model.max_frames))
+    stride, most = int(cfg.cloth.model.frame_stride), int(cfg.cloth.model.max_frames)
+    if not with_frames:
+        return tr.strided(stride, most)
+    idx = np.arange(0, cloth_idx.size, max(1, stride))
+    if most > 0:
+        idx = idx[:most]
+    return tr.strided(stride, most), fp.frames[cloth_idx[idx]]
 
 
 def fixed_params(cfg: DictConfig) -> dict[str, float]:

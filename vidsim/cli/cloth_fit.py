@@ -74,7 +74,7 @@ def run(cfg: DictConfig) -> None:
         raise ClothStageError("paths.footage is empty: give a cloth footage folder")
     fc = cfg.cloth.fit
     t0 = time.perf_counter()
-    trial = load_trial(cfg.paths.footage, cfg)
+    trial, frames = load_trial(cfg.paths.footage, cfg, with_frames=True)
     obj = make_objective([trial], cfg)
     t_feat = time.perf_counter() - t0
     space = obj.space
@@ -140,9 +140,12 @@ def run(cfg: DictConfig) -> None:
             mesh_tris = obj._rigs[0][0].triangles
             for k in range(trial.features.n_frames):
                 lg.set_frame(k)
-                lg.image("footage/camera/image", ev.images[0][k])
+                lg.image("footage/camera/image", frames[k])
                 lg.mask("footage/camera/silhouette", trial.features.sil[k])
-                lg.mask("fit/camera/silhouette", ev.sil_sim[0][k])
+                # the fitted cloth's silhouette over the footage (same image space), and its rendering
+                lg.mask("footage/camera/fit_silhouette", ev.sil_sim[0][k])
+                sim = np.asarray(ev.images[0][k], float)
+                lg.image("fit/camera/image", np.clip(np.rint(255 * sim / max(float(np.nanmax(sim)), 1e-9)), 0, 255).astype(np.uint8))
                 lg.image("footage/camera/angle_deg", np.nan_to_num(np.degrees(trial.features.theta[k]), nan=0.0).astype(np.float32))
                 lg.image("fit/camera/angle_deg", np.nan_to_num(np.degrees(ev.theta_sim[0][k]), nan=0.0).astype(np.float32))
                 lg.mesh3d("world/fit/cloth", ev.positions[0][k], mesh_tris, color=(0.2, 0.5, 0.9))
