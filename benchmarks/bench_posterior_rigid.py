@@ -3,7 +3,7 @@
 Usage::
 
     python benchmarks/bench_posterior_rigid.py [--seeds 1000 ... 1019] [--drag 0] \
-        [--noise sandwich sandwich_hac iid_pixel] [--max-steps 3000] [--json out.json]
+        [--noise sandwich sandwich_hac iid_pixel] [--max-steps 3000] [--json out.json] [--laplace]
 
 Each throw is filmed (pyrender + sensor noise + JPEG) and segmented once, cached in
 ``/tmp/vidsim_posterior_throws`` (not timed), fitted from a guess 10 degrees / 20 % off the truth
@@ -11,7 +11,8 @@ Each throw is filmed (pyrender + sensor noise + JPEG) and segmented once, cached
 fraction of (throw, parameter) pairs whose central 90 % interval contains the truth, convergence
 (chain >= 50 autocorrelation times), the posterior's time per throw and the effective sample size
 per minute. ``--drag k`` films reality with k x physical air drag (linear and angular) that the
-model does not have (withheld effect). Single thread.
+model does not have (withheld effect). ``--laplace`` skips the sampler and scores the Gaussian
+approximation N(mode, (w H)^-1) of the noise calibration instead (cheap). Single thread.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import sys
 import time
 
@@ -31,7 +33,8 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _posterior_throws import throw_data  # noqa: E402
 
-from vidsim.posterior.rigid import NoiseConfig, rigid_posterior, to_natural, truth_params  # noqa: E402
+from vidsim.posterior.rigid import (ANGLE_IDX, FrameLoss, NoiseConfig, calibrate_noise, rigid_posterior,  # noqa: E402
+                                   to_natural, truth_params)  # noqa: E402
 from vidsim.posterior.sampler import SamplerConfig, covered  # noqa: E402
 from vidsim.rigid.body import BoxBody  # noqa: E402
 from vidsim.rigid.dynamics import PARAM_NAMES  # noqa: E402
@@ -40,15 +43,51 @@ from vidsim.rigid.fit import fit_throw  # noqa: E402
 from vidsim.video.camera import PinholeCamera  # noqa: E402
 
 
-def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig) -> list[dict]:
+def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, fit, truth: dict) -> list[dict]:
+    """Coverage of the Gaussian (Laplace) approximation ``N(center, (w H)^-1)`` of each noise model."""
+    rows = []
+    for m in models:
+        t = time.perf_counter()
+        loss = FrameLoss(body, cam, fit.times, d["masks"][fit.frames], fit.t0, fit.q0)
+        nm = calibrate_noise(loss, fit.params, NoiseConfig(model=m), np.random.default_rng(0))
+        tp = to_natural(truth_params(truth, fit.q0, body.symmetries))
+        c = to_natural(nm.center)
+        sd = np.sqrt(np.diag(nm.cov)) * np.where(np.isin(np.arange(14), ANGLE_IDX), 180 / np.pi, 1.0)
+        z = (c - tp) / sd
+        cov = np.abs(z) <= 1.6449
+        rows.append({"seed": seed, "drag": drag, "model": m, "covered": cov.tolist(), "n_covered": int(cov.sum()),
+                     "z": z.tolist(), "w": nm.w, "inflation": nm.inflation, "seconds": time.perf_counter() - t,
+                     "converged": False, "ess_per_minute": 0.0})
+        print(f"seed {seed} drag {drag:g} {m:16s} LAPLACE covered {cov.sum():2d}/14 w {nm.w:.3g} inflation "
+              f"{nm.inflation:.3g} |z|max {np.abs(z).max():.1f} ({PARAM_NAMES[int(np.abs(z).argmax())]}) "
+              f"{time.perf_counter() - t:.0f} s", flush=True)
+    return rows
+
+
+def cached_fit(seed: int, drag: float, d: dict, cam, body, truth: dict):
+    """The fit of a throw (pickled in the throw cache: rerunning the benchmark does not refit)."""
+    path = os.path.join("/tmp/vidsim_posterior_throws", f"fit_{seed}_drag{drag:g}.pkl")
+    if os.path.isfile(path):
+        with open(path, "rb") as fh:
+            return pickle.load(fh)
+    guess = perturbed_guess(truth, np.random.default_rng(seed), orient_deg=10.0, omega_rel=0.2, vel_rel=0.1,
+                            pos_m=0.05, grav_deg=3.0)
+    fit = fit_throw(d["masks"], d["times"], cam, body, guess, {"multistart": "none"})
+    with open(path + ".tmp", "wb") as fh:
+        pickle.dump(fit, fh)
+    os.replace(path + ".tmp", path)
+    return fit
+
+
+def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, laplace: bool = False) -> list[dict]:
     """Fit and sample one throw for each noise model; rows of coverage and cost."""
     d = throw_data(seed, drag)
     cam = PinholeCamera.from_dict(d["camera"])
     body = BoxBody.from_meta(d["meta"]["object"])
     truth = d["truth"]
-    guess = perturbed_guess(truth, np.random.default_rng(seed), orient_deg=10.0, omega_rel=0.2, vel_rel=0.1,
-                            pos_m=0.05, grav_deg=3.0)
-    fit = fit_throw(d["masks"], d["times"], cam, body, guess, {"multistart": "none"})
+    fit = cached_fit(seed, drag, d, cam, body, truth)
+    if laplace:
+        return laplace_rows(seed, drag, models, d, cam, body, fit, truth)
     rows = []
     for m in models:
         post = rigid_posterior(d["masks"][fit.frames], fit.times, cam, body, fit.params, fit.q0, fit.t0,
@@ -79,12 +118,13 @@ def main() -> None:
     ap.add_argument("--max-steps", type=int, default=3000)
     ap.add_argument("--walkers", type=int, default=32)
     ap.add_argument("--json", default="")
+    ap.add_argument("--laplace", action="store_true", help="Gaussian approximation only (no MCMC)")
     a = ap.parse_args()
     scfg = SamplerConfig(n_walkers=a.walkers, max_steps=a.max_steps, chunk=100, min_steps=300)
     t = time.perf_counter()
     rows = []
     for s in a.seeds:
-        rows += run_throw(s, a.drag, a.noise, scfg)
+        rows += run_throw(s, a.drag, a.noise, scfg, a.laplace)
         if a.json:
             with open(a.json, "w") as fh:
                 json.dump(rows, fh)
@@ -93,7 +133,7 @@ def main() -> None:
         r = [x for x in rows if x["model"] == m]
         cov = np.array([x["covered"] for x in r])
         per_param = cov.mean(0)
-        print(f"{m:13s} coverage of 90 % intervals: {cov.mean():.3f} ({cov.sum()}/{cov.size} pairs); "
+        print(f"{m:13s} {'LAPLACE ' if a.laplace else ''}coverage of 90 % intervals: {cov.mean():.3f} ({cov.sum()}/{cov.size} pairs); "
               f"converged {sum(x['converged'] for x in r)}/{len(r)}; posterior time per throw median "
               f"{np.median([x['seconds'] for x in r]):.0f} s; ESS/min median {np.median([x['ess_per_minute'] for x in r]):.0f}")
         print("   per parameter: " + " ".join(f"{n} {c:.2f}" for n, c in zip(PARAM_NAMES, per_param)))

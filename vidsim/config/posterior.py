@@ -11,7 +11,8 @@ class PosteriorRigidConfig:
 
     Attributes:
         noise: likelihood noise model: ``sandwich`` (frames independent, scale from the per-frame
-            residual scores at the optimum), ``sandwich_hac`` (discrepancy-aware: scores correlated
+            residual scores at the optimum), ``sandwich_holdout`` (discrepancy-aware: variance inflated
+            by the disagreement of the first and second half of the frames), ``sandwich_hac`` (scores correlated
             over ``hac_bandwidth`` frames), ``iid_pixel`` (every pixel independent; overconfident).
         n_design: local-design evaluations per refinement of the noise calibration.
         design_iters: refinements of the design to the posterior's scale.

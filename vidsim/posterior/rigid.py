@@ -23,10 +23,12 @@ the optimum. ``w = D / tr(J H^-1)`` matches the posterior's covariance ``(w H)^-
 design around the optimum (the mismatch is only piecewise smooth at the pixel scale, so the
 surface, refitted at the posterior's own scale, is more reliable than pointwise derivatives).
 
-Model discrepancy (``sandwich_hac``): when the model lacks an effect of reality (air drag), the
+Model discrepancy (``sandwich_hac``, ``sandwich_holdout``): when the model lacks an effect of reality (air drag), the
 per-frame scores are no longer independent but drift smoothly over the throw. A Newey-West
 (Bartlett kernel) long-run covariance of the scores over a lag window of ``hac_bandwidth`` frames
 replaces ``J``, which widens the posterior by what the temporally structured misfit implies.
+``sandwich_holdout`` compares the modes of the first and second half of the frames (held out from
+each other) and inflates the posterior variance by their chi-square disagreement per parameter.
 
 Multimodality: a distinct alternative solution of the fit (e.g. the flipped orientation) whose
 posterior density is within ``multimodal_ratio`` of the mode, or walkers whose orientations split
@@ -57,7 +59,7 @@ UNITS = ("m",) * 3 + ("deg",) * 3 + ("m/s",) * 3 + ("rad/s",) * 3 + ("deg",) * 2
 DESIGN_SCALE0 = np.array([0.002] * 3 + [0.005] * 3 + [0.01] * 3 + [0.05] * 3 + [0.002] * 2)
 """First local-design step per parameter (m, rad, m/s, rad/s, rad), refined to the posterior's scale."""
 
-NOISE_MODELS = ("sandwich", "sandwich_hac", "iid_pixel")
+NOISE_MODELS = ("sandwich", "sandwich_hac", "sandwich_holdout", "iid_pixel")
 
 
 @dataclass
@@ -89,7 +91,8 @@ class NoiseConfig:
     """Noise model of the silhouette likelihood.
 
     Attributes:
-        model: ``sandwich`` (frames independent), ``sandwich_hac`` (discrepancy-aware: scores
+        model: ``sandwich`` (frames independent), ``sandwich_holdout`` (discrepancy-aware: variance
+            inflated by the disagreement of the two halves of the throw), ``sandwich_hac`` (scores
             correlated over ``hac_bandwidth`` frames) or ``iid_pixel`` (every pixel independent;
             overconfident, for comparison).
         n_design: local-design evaluations per refinement (quadratic surfaces need > 120).
@@ -168,6 +171,7 @@ class NoiseModel:
         bandwidth: HAC lag window used (0: none).
         r2: coefficient of determination of the total-loss surface on its design.
         n_evals: evaluations spent.
+        inflation: variance inflation of ``sandwich_holdout`` (1: none).
     """
 
     model: str
@@ -181,11 +185,13 @@ class NoiseModel:
     bandwidth: int
     r2: float
     n_evals: int
+    inflation: float = 1.0
 
     def to_dict(self) -> dict:
         return {"model": self.model, "w_per_pixel": float(self.w), "loss_min_pixels": float(self.loss_min),
                 "posterior_sd_laplace": np.sqrt(np.diag(self.cov)).tolist(), "hac_bandwidth": int(self.bandwidth),
-                "surface_r2": float(self.r2), "n_evals": int(self.n_evals)}
+                "surface_r2": float(self.r2), "n_evals": int(self.n_evals),
+                "holdout_inflation": float(self.inflation)}
 
 
 def _quad_features(z: np.ndarray) -> np.ndarray:
@@ -218,6 +224,30 @@ def hac_covariance(scores: np.ndarray, bandwidth: int) -> np.ndarray:
         Gl = G[lag:].T @ G[:-lag]
         J += (1.0 - lag / (bandwidth + 1.0)) * (Gl + Gl.T)
     return J
+
+
+def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float) -> float:
+    """Variance inflation from held-out frames: do the two halves of the throw agree?
+
+    Each half (first / second half of the frames) has its own mode ``z_h = -H_h^-1 g_h`` and, under
+    the calibrated likelihood, covariance ``(w H_h)^-1``. Without model discrepancy the statistic
+    ``chi2 = d^T (C_1 + C_2)^-1 d`` of ``d = z_1 - z_2`` is about ``D``; a missing effect (air drag)
+    makes early and late frames disagree. Returns ``max(1, chi2 / D)``.
+
+    Args:
+        scores: (T, D) per-frame score at the joint mode; hessians: (T, D, D) per-frame Hessians.
+        w: calibrated learning rate, 1/pixel.
+    """
+    T, D = scores.shape
+    h = T // 2
+    modes, covs = [], []
+    for sl in (slice(0, h), slice(h, T)):
+        Hh = _pd(hessians[sl].sum(0), 1e-3)
+        modes.append(-np.linalg.solve(Hh, scores[sl].sum(0)))
+        covs.append(np.linalg.inv(w * Hh))
+    d = modes[0] - modes[1]
+    chi2 = float(d @ np.linalg.solve(covs[0] + covs[1], d))
+    return max(1.0, chi2 / D)
 
 
 def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = None,
@@ -271,9 +301,10 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
         if nz > 2.0:
             zs *= 2.0 / nz
         gk = np.empty((T, D))
+        Hks = np.empty((T, D, D))
         for k in range(T):
-            g, Hk = _unpack(coef[:, k], D)
-            gk[k] = g + Hk @ zs
+            g, Hks[k] = _unpack(coef[:, k], D)
+            gk[k] = g + Hks[k] @ zs
         if cfg.model == "sandwich_hac":
             bw = cfg.hac_bandwidth or max(1, T // 4)
             J = hac_covariance(gk, bw)
@@ -285,6 +316,10 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
             w = 1.0 / (2.0 * max(float(y.min()), 1e-9) / loss.n_pixels)
         else:
             w = D / float(np.trace(np.linalg.solve(H, J)))
+        inflation = 1.0
+        if cfg.model == "sandwich_holdout":
+            inflation = holdout_inflation(gk, Hks, w)
+            w /= inflation
         A_used = A.copy()
         center = center + A @ zs
         Hinv = np.linalg.inv(H)
@@ -306,7 +341,7 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
     Hp = Ai.T @ H @ Ai
     Jp = Ai.T @ J @ Ai
     s = np.sqrt(np.diag(A_used @ A_used.T))
-    return NoiseModel(cfg.model, float(w), center, float(np.sum(Lc)), Hp, Jp, cov, s, bw, r2, n_evals)
+    return NoiseModel(cfg.model, float(w), center, float(np.sum(Lc)), Hp, Jp, cov, s, bw, r2, n_evals, inflation)
 
 
 # ----------------------------------------------------------------------------- posterior

@@ -98,3 +98,13 @@ def test_truth_params_rotation_modulo_symmetry() -> None:
     tp = truth_params(truth, base, np.stack([np.eye(3), flip]))
     np.testing.assert_allclose(tp[3:6], d, atol=1e-9)
     np.testing.assert_allclose(tp[[0, 1, 2, 6, 12, 13]], [0, 0, 3, 1, 0.01, -0.02])
+
+
+def test_holdout_inflation_detects_a_drifting_misfit(rng) -> None:
+    ok = LinearFrames(rng, 400, 1.0)
+    nm = calibrate_noise(ok, np.zeros(N_PARAM), NoiseConfig("sandwich_holdout", n_design=300, design_iters=1), rng)
+    assert nm.inflation < 3.0  # halves agree within noise (chi2 / D ~ 1)
+    bad = LinearFrames(rng, 400, 1.0)
+    bad.y = bad.y + np.linspace(-1, 1, 400) * 30.0 * (bad.A[:, 0] * DESIGN_SCALE0[0] / 0.05)  # unmodelled term
+    nb = calibrate_noise(bad, np.zeros(N_PARAM), NoiseConfig("sandwich_holdout", n_design=300, design_iters=1), rng)
+    assert nb.inflation > 10.0
