@@ -131,11 +131,13 @@ def make_case(case: dict, scene: RigidRealityConfig | None = None):
     return segment(th.frames, cfg=SegmentConfig()), th
 
 
-def true_strengths(truth: dict, body: BoxBody) -> dict[str, float | list[float]]:
+def true_strengths(truth: dict, body: BoxBody, nominal_times: np.ndarray | None = None
+                   ) -> dict[str, float | list[float]]:
     """Library-parameter values implied by the reality's effects (for scoring only).
 
     ``lens_k1`` and ``com_offset`` are the same quantities; ``time_jitter`` is the standard
-    deviation of the true minus nominal capture times; ``magnus`` is MuJoCo's Magnus force per
+    deviation of the true minus the nominal capture times (``nominal_times``, seconds: the times
+    written to the footage); ``magnus`` is MuJoCo's Magnus force per
     unit mass and spin-velocity product, ``C_M rho sum(V_ellipsoid) / m`` (MuJoCo's fluid model
     uses each box's equivalent ellipsoid volume).
     """
@@ -147,9 +149,7 @@ def true_strengths(truth: dict, body: BoxBody) -> dict[str, float | list[float]]
         out["com_offset"] = list(map(float, e["com_offset"]))
     if e.get("time_jitter"):
         ct = np.asarray(truth["capture_times"], float)
-        n = len(ct)
-        fps = 1.0 / np.median(np.diff(ct)) if n > 1 else 30.0
-        nominal = np.arange(n) / round(fps)
+        nominal = np.asarray(nominal_times, float) if nominal_times is not None else np.arange(len(ct)) / 30.0
         out["time_jitter"] = float(np.std(ct - nominal))
     if e.get("magnus"):
         vol = float(np.sum(4.0 / 3.0 * np.pi * np.prod(body.half_sizes, axis=1)))
@@ -157,7 +157,8 @@ def true_strengths(truth: dict, body: BoxBody) -> dict[str, float | list[float]]
     return out
 
 
-def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody) -> dict:
+def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
+               nominal_times: np.ndarray | None = None) -> dict:
     """Named effect correct or not, held-out shrinkage and recovered strength vs truth."""
     labels = case_labels(case)
     lab = case.get("label", "none")
@@ -174,7 +175,7 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody) -> 
                            "gap_present": bool(diag.extra.get("gap_present", False)),
                            "noise_floor_px": float(diag.floor_test.mean()),
                            "heldout_before_px": float(diag.gap_per_frame[diag.test].mean())}
-    truths = true_strengths(truth, body)
+    truths = true_strengths(truth, body, nominal_times)
     rec = {}
     for lbl in labels:
         r = diag.refits.get(lbl)
@@ -215,7 +216,7 @@ def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidReality
     res = fit_throw(masks, th.times, th.camera, body, guess, {"multistart": "none"})
     t_fit = time.perf_counter() - t
     diag = diagnose_rigid(masks, th.times, th.camera, body, res.summary(), dcfg, progress)
-    sc = score_case(case, diag, th.truth, body)
+    sc = score_case(case, diag, th.truth, body, th.times)
     sc["fit_seconds"] = t_fit
     sc["diagnose_seconds"] = diag.seconds
     sc["fit_mean_iou"] = float(res.mean_iou)
