@@ -32,7 +32,7 @@ class DiagnoseError(VidsimError):
 def run(cfg: DictConfig) -> None:
     from vidsim.cli._rigid import body_from_meta, load_yaml, read_masks
     from vidsim.gap.rigid_diagnose import diagnose_rigid
-    from vidsim.io.footage import read_calibration, read_meta, read_times
+    from vidsim.io.footage import read_calibration, read_meta
 
     if not cfg.paths.footage:
         raise DiagnoseError("paths.footage is empty: give the footage folder of the fitted throw")

@@ -33,7 +33,6 @@ interest around the body, at a reduced image scale; the *gap* is the mean per fr
 
 from __future__ import annotations
 
-import itertools
 import time
 from dataclasses import dataclass, field
 
@@ -41,7 +40,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vidsim.gap.rigid_model import RIGID_EFFECTS, GapError, RigidGapModel, effect_size
+from vidsim.gap.rigid_model import RIGID_EFFECTS, GapError, RigidGapModel
 from vidsim.rigid.body import BoxBody
 from vidsim.rigid.dynamics import quat_exp, quat_mul
 from vidsim.rigid.fit import visible_frames
