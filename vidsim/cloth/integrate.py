@@ -28,7 +28,7 @@ from vidsim.cloth.collision import (
     edge_collision_forces,
     self_collision_forces,
 )
-from vidsim.cloth.forces import bend_forces_fused, triangle_forces
+from vidsim.cloth.forces import bend_forces_fused, bend_forces_quadratic, triangle_forces
 
 STATUS_TEXT = {
     0: None,
@@ -38,10 +38,16 @@ STATUS_TEXT = {
     4: "step budget exhausted",
 }
 
+# numba's on-disk cache (cache=True) is keyed on the source text of *this* file only: a
+# change to a kernel in forces.py or collision.py is not seen by the cached _accel and the
+# loops that inline it. Bump KERNEL_VERSION with every such change (or delete __pycache__).
+# test_fused_kernels_equal_the_separate_forces catches a stale cache.
+KERNEL_VERSION = "2026-12-01 quadratic bending, projected bend damping, one-division stretch/drag"
+
 # parameter vector layout
 P_BEND, P_STRETCH, P_SHEAR, P_KDB, P_KDS, P_KDSH, P_KT, P_KN, P_KF = range(9)
-P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL, P_MARGIN = range(9, 16)
-N_P = 16
+P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL, P_MARGIN, P_BENDQ = range(9, 17)
+N_P = 17
 
 
 @njit(cache=True)
@@ -120,7 +126,7 @@ def _accel(
     Returns the (possibly rebuilt) self-collision candidate pairs
     (vertex-triangle, edge-edge).
     """
-    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare, etris, tnorm = model
+    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare, etris, tnorm, bquad, inv_mass = model
     didx, dtimes, dpos, dvel = drv
     ctimes, sc, sr, ca, cb, cr = col
     D = didx.shape[0]
@@ -134,7 +140,10 @@ def _accel(
     gravity_init(mass, g, f)
     triangle_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_SHEAR], P[P_KDS], P[P_KDSH],
                     P[P_KT], P[P_KN], P[P_KF], wind, tnorm, f)
-    bend_forces_fused(x, v, edges, etris, tnorm, bcoef, brest, P[P_BEND], P[P_KDB], f)
+    if P[P_BENDQ] > 0:
+        bend_forces_quadratic(x, v, edges, bquad, P[P_BEND], P[P_KDB], f)
+    else:
+        bend_forces_fused(x, v, edges, etris, tnorm, bcoef, brest, P[P_BEND], P[P_KDB], f)
     collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
     if P[P_SELFON] > 0:
         h = P[P_SELFH]
@@ -158,7 +167,7 @@ def _accel(
         edge_collision_forces(x, uedges, vert_area, epairs, P[P_SELFK], h, f)
     N = x.shape[0]
     for i in range(N):
-        im = 1.0 / mass[i]
+        im = inv_mass[i]
         acc[i, 0] = f[i, 0] * im
         acc[i, 1] = f[i, 1] * im
         acc[i, 2] = f[i, 2] * im

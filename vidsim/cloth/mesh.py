@@ -40,6 +40,9 @@ class ClothMesh:
         bend_coef: (E,) |e|^2 / (A1 + A2) at rest (dimensionless).
         bend_rest: (E,) rest dihedral angles [rad] (zero for a flat rest shape).
         bend_tris: (E, 2) the two triangles of each bend edge.
+        bend_quad: (E, 4) weights K_j / sqrt(A1 + A2) [1/m] of the quadratic bending model
+            (Bergou et al. 2006): rest cotangent weights from the flat material (u, v)
+            coordinates, so that sum_j K_j x_j = 0 for any in-plane (affine) state.
         vertex_area: (N,) lumped rest area per vertex [m^2].
         vertex_valence: (N,) number of triangles per vertex.
         tri_edge_share: (M, 3) triangles sharing the edge opposite each corner.
@@ -56,6 +59,7 @@ class ClothMesh:
     bend_coef: np.ndarray = field(init=False, repr=False)
     bend_rest: np.ndarray = field(init=False, repr=False)
     bend_tris: np.ndarray = field(init=False, repr=False)
+    bend_quad: np.ndarray = field(init=False, repr=False)
     vertex_area: np.ndarray = field(init=False, repr=False)
     vertex_valence: np.ndarray = field(init=False, repr=False)
     tri_edge_share: np.ndarray = field(init=False, repr=False)
@@ -113,6 +117,7 @@ class ClothMesh:
 
         edges, coefs, rest, etris = _bend_edges(X, T, area)
         object.__setattr__(self, "bend_tris", etris)
+        object.__setattr__(self, "bend_quad", _quadratic_bend_weights(T, UV, area, edges, etris))
         if self.flat_rest_bend:
             rest = np.zeros_like(rest)
         object.__setattr__(self, "bend_edges", edges)
@@ -186,6 +191,39 @@ def _bend_edges(X: np.ndarray, T: np.ndarray, area: np.ndarray) -> tuple[np.ndar
     coefs = L2 / (area[arr[:, 4]] + area[arr[:, 5]])
     rest = _dihedral(X[edges[:, 0]], X[edges[:, 1]], X[edges[:, 2]], X[edges[:, 3]])
     return edges, coefs, rest, np.ascontiguousarray(arr[:, 4:6])
+
+
+def _quadratic_bend_weights(T: np.ndarray, UV: np.ndarray, area: np.ndarray, edges: np.ndarray,
+                            etris: np.ndarray) -> np.ndarray:
+    """Cotangent weights of the quadratic bending model, (E, 4), over (x0, x1, x2, x3).
+
+    K = (c03 + c04, c01 + c02, -c01 - c03, -c02 - c04) / sqrt(A1 + A2), with c0k the
+    cotangent of the rest angle at x0 and c(k) at x1 in triangle 1 (x0, x1, x2) and 2
+    (x1, x0, x3), measured in the material (u, v) coordinates (Bergou et al. 2006, with
+    their 3/(A1+A2) replaced by 1/(A1+A2) so that small-angle energies equal the dihedral
+    model's k_b/2 |e|^2/(A1+A2) theta^2).
+    """
+    if edges.shape[0] == 0:
+        return np.zeros((0, 4))
+
+    def corner_uv(t: np.ndarray, vert: np.ndarray) -> np.ndarray:
+        c = np.argmax(T[t] == vert[:, None], axis=1)
+        return UV[t, c]
+
+    t1, t2 = etris[:, 0], etris[:, 1]
+    u0a, u1a, u2 = corner_uv(t1, edges[:, 0]), corner_uv(t1, edges[:, 1]), corner_uv(t1, edges[:, 2])
+    u0b, u1b, u3 = corner_uv(t2, edges[:, 0]), corner_uv(t2, edges[:, 1]), corner_uv(t2, edges[:, 3])
+
+    def cot(o: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        p, q = a - o, b - o
+        return (p[:, 0] * q[:, 0] + p[:, 1] * q[:, 1]) / np.abs(p[:, 0] * q[:, 1] - p[:, 1] * q[:, 0])
+
+    c01 = cot(u0a, u1a, u2)  # at x0, triangle 1
+    c03 = cot(u1a, u0a, u2)  # at x1, triangle 1
+    c02 = cot(u0b, u1b, u3)  # at x0, triangle 2
+    c04 = cot(u1b, u0b, u3)  # at x1, triangle 2
+    K = np.stack([c03 + c04, c01 + c02, -c01 - c03, -c02 - c04], axis=1)
+    return np.ascontiguousarray(K / np.sqrt(area[t1] + area[t2])[:, None])
 
 
 def _grid_triangles(nu: int, nv: int, wrap_u: bool = False) -> np.ndarray:

@@ -6,7 +6,9 @@ import pytest
 from vidsim.cloth import Colliders, swatch
 from vidsim.cloth.collision import build_self_pairs, collider_forces, self_collision_forces
 from vidsim.cloth.forces import (
+    atan2_fast,
     bend_forces,
+    bend_forces_quadratic,
     drag_dissipation_potential,
     drag_forces,
     gravity_forces,
@@ -69,6 +71,63 @@ def test_bend_force_is_minus_energy_gradient(bent):
     _check(f, _fd_grad(energy, x), 1e-3)
 
 
+def test_quadratic_bend_force_is_minus_energy_gradient(bent):
+    m, x, _ = bent
+    z = np.zeros_like(x)
+
+    def energy(xx):
+        return bend_forces_quadratic(xx, z, m.bend_edges, m.bend_quad, 2e-5, 0.0, np.zeros_like(xx))
+
+    f = np.zeros_like(x)
+    bend_forces_quadratic(x, z, m.bend_edges, m.bend_quad, 2e-5, 0.0, f)
+    _check(f, _fd_grad(energy, x), 1e-3)
+
+
+def test_quadratic_bend_matches_dihedral_energy_at_small_angles(rng):
+    """Same D: on a flat-rest swatch, the quadratic model's energy equals the dihedral
+    model's to O(theta^4) (ratio -> 1 as the bending amplitude -> 0), and a cylinder bent
+    along the warp has energy D/2 kappa^2 per area on the interior (regular grid)."""
+    m = swatch(12, 12, 0.2, 0.2, axis_u=(1, 0, 0), axis_v=(0, 1, 0))
+    X = m.rest_positions
+    z = np.zeros_like(X)
+    shape = rng.standard_normal((m.n_vertices,))
+    ratios = []
+    for amp in (1e-3, 1e-4):
+        x = X.copy()
+        x[:, 2] = amp * shape
+        ed = bend_forces(x, z, m.bend_edges, m.bend_coef, m.bend_rest, 1.0, 0.0, np.zeros_like(x))
+        eq = bend_forces_quadratic(x, z, m.bend_edges, m.bend_quad, 1.0, 0.0, np.zeros_like(x))
+        ratios.append(eq / ed)
+    assert abs(ratios[1] - 1) < 1e-3 and abs(ratios[1] - 1) < abs(ratios[0] - 1) + 1e-12, ratios
+    kap = 3.0
+    s = X[:, 0]
+    x = np.stack([np.sin(kap * s) / kap, X[:, 1], (1 - np.cos(kap * s)) / kap], axis=1)
+    eq = bend_forces_quadratic(x, z, m.bend_edges, m.bend_quad, 1.0, 0.0, np.zeros_like(x))
+    # interior bend edges along v: (n-2) columns x (n-1) rows of h x h cells, D/2 kappa^2 each
+    h = 0.2 / 11
+    expect = 0.5 * kap**2 * h**2 * 10 * 11
+    assert abs(eq - expect) < 1e-3 * expect, (eq, expect)
+
+
+def test_quadratic_bend_rejects_curved_rest_shape():
+    from vidsim.cloth import ClothInputError, ClothParams, compute_forces, skirt
+
+    m = skirt(12, 4, flat_rest_bend=False)
+    with pytest.raises(ClothInputError, match="flat bending rest"):
+        compute_forces(m, ClothParams(), m.rest_positions, np.zeros_like(m.rest_positions), bending="quadratic")
+
+
+def test_atan2_fast_matches_math_atan2():
+    import math
+
+    a = np.linspace(-np.pi, np.pi, 20001)[1:-1]
+    for r in (1e-9, 1.0, 1e6):
+        for y, x in zip(r * np.sin(a), r * np.cos(a)):
+            assert abs(atan2_fast(y, x) - math.atan2(y, x)) < 1e-15
+    for y, x in ((0.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 0.0), (-1.0, 0.0), (1.0, 1.0), (-2.0, -2.0)):
+        assert abs(atan2_fast(y, x) - math.atan2(y, x)) < 1e-15, (y, x)
+
+
 def test_damping_forces_are_minus_rayleigh_gradient(bent):
     """d = -kd dC/dx Cdot is -dR/dv with R = kd/2 Cdot^2 = 1/2 v.D.v, so v.f = -2R."""
     m, x, v = bent
@@ -86,6 +145,20 @@ def test_damping_forces_are_minus_rayleigh_gradient(bent):
     g = _fd_grad(rayleigh, v, h=1e-5)
     _check(f, g, 1e-3)
     # dissipative: power is negative for any velocity
+    assert np.sum(v * f) < 0
+
+
+def test_quadratic_bend_damping_is_minus_rayleigh_gradient(bent):
+    m, x, v = bent
+
+    def dforce(vv):
+        f = np.zeros_like(x)
+        bend_forces_quadratic(x, vv, m.bend_edges, m.bend_quad, 0.0, 1e-7, f)
+        return f
+
+    f = dforce(v)
+    g = _fd_grad(lambda vv: -0.5 * np.sum(vv * dforce(vv)), v, h=1e-5)
+    _check(f, g, 1e-6)
     assert np.sum(v * f) < 0
 
 
@@ -156,5 +229,14 @@ def test_fused_kernels_equal_the_separate_forces(bent):
     bend_forces(x, v, m.bend_edges, m.bend_coef, m.bend_rest, 2e-5, 1e-7, f)
     drag_forces(x, v, m.triangles, 0.7, 1.3, 0.4, wind, f)
     gravity_forces(x, m.masses(p.density), np.asarray(p.gravity), f)
-    fused = compute_forces(m, p, x, v, wind=wind)
+    fused = compute_forces(m, p, x, v, wind=wind, bending="dihedral")
     assert np.allclose(fused, f, rtol=1e-9, atol=1e-12 * np.abs(f).max())
+    # quadratic bending: the integrator's kernel selection gives the checked kernel's forces
+    fq = f.copy()
+    bend_forces(x, v, m.bend_edges, m.bend_coef, m.bend_rest, -2e-5, -1e-7, fq)  # remove the dihedral part
+    bend_forces_quadratic(x, v, m.bend_edges, m.bend_quad, 2e-5, 1e-7, fq)
+    fused_q = compute_forces(m, p, x, v, wind=wind, bending="quadratic")
+    assert np.allclose(fused_q, fq, rtol=1e-9, atol=1e-12 * np.abs(f).max())
+    # "auto" is the quadratic model on this flat-rest swatch; the default is dihedral
+    assert np.array_equal(compute_forces(m, p, x, v, wind=wind, bending="auto"), fused_q)
+    assert np.array_equal(compute_forces(m, p, x, v, wind=wind), fused)
