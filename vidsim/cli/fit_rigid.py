@@ -21,7 +21,8 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli._rigid import (RigidStageError, body_from_meta, fit_config, log_image, read_masks, write_animation)
+from vidsim.cli._rigid import RigidStageError, body_from_meta, fit_config, log_image, read_masks
+from vidsim.io.video import write_animation
 from vidsim.config.rigid import validate_rigid
 from vidsim.io.atomic import write_yaml
 from vidsim.io.footage import read_calibration, read_footage

@@ -1,6 +1,6 @@
 # Camera (and projector) calibration: the real chessboard set and synthetic scene targets.
 
-if stage_enabled("calibration_chessboard"):
+if stage_enabled("calibration_chessboard") and shared_available("opencv_chessboard"):
     TARGETS["calibration_chessboard"] = [f"{RESULTS}/calibration/chessboard/calibration.yaml"]
 
 

@@ -1,4 +1,5 @@
 # Helpers shared by all rules (input functions live only here).
+import sys
 from pathlib import Path
 
 RESULTS = config.get("results", "results")
@@ -18,6 +19,21 @@ def stage_overrides(stage):
 
 def stage_enabled(name):
     return bool(config.get("stages", {}).get(name, False))
+
+
+_SHARED_MISSING = set()
+
+
+def shared_available(sub):
+    """True when the real recording ``<shared_data>/<sub>`` exists; otherwise the stages that need it
+    are left out of the targets, with one warning naming the missing folder (the rest still runs)."""
+    if (SHARED / sub).exists():
+        return True
+    if sub not in _SHARED_MISSING:
+        _SHARED_MISSING.add(sub)
+        print(f"vidsim: real data {SHARED / sub} is absent: its stages are skipped (set shared_data=...)",
+              file=sys.stderr)
+    return False
 
 
 # Each workflow/rules/<family>.smk registers its final outputs here at parse time, under the

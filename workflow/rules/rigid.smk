@@ -15,7 +15,7 @@ if stage_enabled("rigid"):
     TARGETS["rigid"] = [f"{RESULTS}/rigid/{c}/{f}" for c in RIGID_CASES for f in ("overlay.mp4", "errors.png")]
     if RIGID_CASES:
         TARGETS["rigid"] += [f"{RESULTS}/rigid/summary.csv", f"{RESULTS}/rigid/summary.png"]
-    if RIGID.get("ball", False):
+    if RIGID.get("ball", False) and shared_available("tracklab_physics/verticalToss.webm"):
         TARGETS["rigid"] += [f"{RESULTS}/rigid/ball/ball.yaml", f"{RESULTS}/rigid/ball/ball.png"]
 
 
