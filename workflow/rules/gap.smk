@@ -13,7 +13,7 @@ GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
 if stage_enabled("gap"):
     TARGETS["gap"] = [f"{RESULTS}/gap/suite/suite.json", f"{RESULTS}/gap/suite/confusion.png"]
     TARGETS["gap"] += [f"{RESULTS}/gap/rigid_{c}/diagnosis.json" for c in GAP_DIAGNOSE]
-    if GAP.get("ball", False):
+    if GAP.get("ball", False) and shared_available("tracklab_physics/verticalToss.webm"):
         TARGETS["gap"] += [f"{RESULTS}/gap/ball/ball_gap.json"]
 
 
