@@ -2,7 +2,9 @@
 
 All planned outputs are created as empty files and recorded as up to date (``--touch``); a dry
 run then plans nothing; after a change of linen's ``per_fabric`` overrides it plans linen's fits,
-linen's selection and the validation (which reads every fabric), and nothing of satin's.
+linen's selection and profile, and the validation and skirt matrices (which read every fabric),
+and nothing of satin's (its fits, its CMA-ES and joint fits of the method comparison) nor of the
+twin's.
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ def _config(tmp: Path, per_fabric: dict) -> Path:
         "stages": {k: k == "cloth" for k in ("calibration_chessboard", "demo", "sweep_calibration", "rigid", "cloth",
                                              "fluid", "posterior", "gap")},
         "cloth": {"fabrics": ["linen", "satin"], "fit_trials": ["exp1", "exp2"], "held_out": "robot", "hydra": "",
-                  "reality_hydra": "", "calibration_hydra": "", "per_fabric": per_fabric, "per_fabric_reality": {}},
+                  "reality_hydra": "", "calibration_hydra": "", "per_fabric": per_fabric, "per_fabric_reality": {},
+                  "twins": ["twin"], "skirt": True, "compare": ["satin"]},
     }
     p = tmp / "x.yaml"
     p.write_text(yaml.safe_dump(cfg))
@@ -44,7 +47,10 @@ def test_one_fabric_change_reruns_only_that_fabric(tmp_path):
     cfg = _config(tmp_path, {})
     summary = _smk(cfg, "--summary")
     outs = [line.split("\t")[0] for line in summary.splitlines()[1:] if line.startswith(str(tmp_path))]
-    assert any("cloth/fit/satin_exp2/fit.yaml" in o for o in outs)
+    for want in ("cloth/fit/satin_exp2/fit.yaml", "cloth/twin/twin/score.yaml", "cloth/skirt/matrix.png",
+                 "cloth/compare/curves.png", "cloth/fit_joint/satin/fit.yaml", "cloth/fit_cmaes/satin_exp1/fit.yaml",
+                 "footage/skirt_linen/meta.yaml", "cloth/profile/linen/profile.yaml"):
+        assert any(want in o for o in outs), want
     for o in outs:
         Path(o).parent.mkdir(parents=True, exist_ok=True)
         Path(o).touch()
@@ -52,7 +58,13 @@ def test_one_fabric_change_reruns_only_that_fabric(tmp_path):
     assert "Nothing to be done" in _smk(cfg, "-n")
     cfg = _config(tmp_path, {"linen": "cloth.fit.seed=1"})
     plan = _smk(cfg, "-n", "-p")
-    jobs = re.findall(r"^rule (\w+):\n(?:[^\n]*\n)*?\s+wildcards: ([^\n]*)|^rule (validate_cloth|all):", plan, re.M)
-    planned = sorted({(a or c, b) for a, b, c in jobs})
+    jobs = []
+    for block in re.split(r"^(?=(?:local)?rule \w+:)", plan, flags=re.M):
+        m = re.match(r"(?:local)?rule (\w+):", block)
+        if m:
+            w = re.search(r"^\s+wildcards: ([^\n]*)", block, re.M)
+            jobs.append((m.group(1), w.group(1) if w else ""))
+    planned = sorted(set(jobs))
     assert planned == [("all", ""), ("fit_cloth", "fabric=linen, trial=exp1"), ("fit_cloth", "fabric=linen, trial=exp2"),
-                       ("select_cloth", "fabric=linen"), ("validate_cloth", "")], planned
+                       ("profile_cloth", "fabric=linen"), ("select_cloth", "fabric=linen"), ("skirt_cloth", ""),
+                       ("validate_cloth", "")], planned

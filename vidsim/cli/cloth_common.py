@@ -8,19 +8,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cloth import ESTIMATED_NAMES, ClothParams
 from vidsim.clothfit.features import FeatureSettings, extract_features
 from vidsim.clothfit.objective import ClothObjective, ModelSettings, Trial, space_from_config
+from vidsim.clothfit.rig import RigError, SkirtBody
 from vidsim.errors import VidsimError
-from vidsim.io.footage import read_footage
+from vidsim.io.footage import read_footage, read_meta
+from vidsim.log.progress import Progress
 from vidsim.render.projector import Projector
 
-__all__ = ["ClothStageError", "feature_settings", "load_trial", "make_objective", "params_dict", "fixed_params"]
+__all__ = ["ClothStageError", "feature_settings", "load_trial", "make_objective", "params_dict", "fixed_params",
+           "object_kind", "params_from_dict", "read_selected", "fabric_sets", "fabric_matrix", "matrix_figure", "matrix_csv",
+           "irradiance_to_uint8"]
 
-#: what a cloth footage folder's meta.yaml must give (known inputs)
-REQUIRED_META = ("scene", "background_frames", "corner_paths", "size_m", "areal_density", "projector_pattern")
+#: what a cloth footage folder's meta.yaml must give (known inputs), for every object and per
+#: object kind (``object: {kind: swatch | skirt}``; a folder without ``object`` is a swatch)
+REQUIRED_META = ("scene", "background_frames", "areal_density", "projector_pattern")
+REQUIRED_META_KIND = {"swatch": ("corner_paths", "size_m"), "skirt": ("body",)}
 
 
 class ClothStageError(VidsimError):
@@ -46,7 +53,8 @@ def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, wit
         The (strided) trial with the *calibrated* camera and projector of the folder
         (and its frames with ``with_frames``).
     """
-    fp = read_footage(folder, required_meta=REQUIRED_META)
+    kind = object_kind(folder)
+    fp = read_footage(folder, required_meta=REQUIRED_META + REQUIRED_META_KIND[kind])
     meta = fp.meta
     if meta["scene"] != "cloth":
         raise ClothStageError(f"{folder}/meta.yaml: scene = {meta['scene']!r}, expected 'cloth'")
@@ -54,16 +62,26 @@ def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, wit
         raise ClothStageError(f"{folder}/calibration.yaml: field 'projector' is missing (the cloth scene is lit by stripes)")
     bg = np.asarray(meta["background_frames"], int)
     cloth_idx = np.setdiff1d(np.arange(fp.frames.shape[0]), bg)
-    cp = np.asarray(meta["corner_paths"], float)
-    if cp.shape != (cloth_idx.size, 2, 3):
-        raise ClothStageError(f"{folder}/meta.yaml: corner_paths has shape {cp.shape}, expected ({cloth_idx.size}, 2, 3)")
+    body = None
+    if kind == "skirt":
+        try:
+            body = SkirtBody.from_meta(meta["body"], f"{folder}/meta.yaml")
+        except RigError as e:
+            raise ClothStageError(str(e)) from None
+        if body.n_frames != cloth_idx.size:
+            raise ClothStageError(f"{folder}/meta.yaml: body has {body.n_frames} frames, expected {cloth_idx.size}")
+        cp = np.zeros((cloth_idx.size, 0, 3))
+    else:
+        cp = np.asarray(meta["corner_paths"], float)
+        if cp.shape != (cloth_idx.size, 2, 3):
+            raise ClothStageError(f"{folder}/meta.yaml: corner_paths has shape {cp.shape}, expected ({cloth_idx.size}, 2, 3)")
     pat = meta["projector_pattern"]
     proj = Projector(fp.cameras["projector"], period_px=float(pat["period_px"]), power=float(pat.get("power", 1.0)),
                      ambient=float(pat.get("ambient", 0.1)))
     fs = feature_settings(cfg)
     feats = extract_features(fp.frames, bg, fs)
-    tr = Trial(name or Path(folder).name, feats, fp.times[cloth_idx], cp, fp.camera, proj, float(meta["size_m"]),
-               float(meta["areal_density"]))
+    tr = Trial(name or Path(folder).name, feats, fp.times[cloth_idx], cp, fp.camera, proj,
+               float(meta.get("size_m", 0.0)), float(meta["areal_density"]), body)
     stride, most = int(cfg.cloth.model.frame_stride), int(cfg.cloth.model.max_frames)
     if not with_frames:
         return tr.strided(stride, most)
@@ -71,6 +89,18 @@ def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, wit
     if most > 0:
         idx = idx[:most]
     return tr.strided(stride, most), fp.frames[cloth_idx[idx]]
+
+
+def object_kind(folder: str | Path) -> str:
+    """``swatch`` or ``skirt``: the ``object.kind`` of a cloth footage folder's meta.yaml."""
+    if not (Path(folder) / "meta.yaml").is_file():
+        return "swatch"  # read_footage names what is missing
+    meta = read_meta(Path(folder) / "meta.yaml", required=("scene",))
+    obj = meta.get("object") or {}
+    kind = obj.get("kind", "swatch") if isinstance(obj, dict) else None
+    if kind not in REQUIRED_META_KIND:
+        raise ClothStageError(f"{folder}/meta.yaml: object.kind = {kind!r}, expected one of {sorted(REQUIRED_META_KIND)}")
+    return kind
 
 
 def fixed_params(cfg: DictConfig) -> dict[str, float]:
@@ -88,7 +118,9 @@ def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
     space = space_from_config({n: full[n] for n in est})
     m = cfg.cloth.model
     return ClothObjective(trials, space, fixed=fixed_params(cfg),
-                          model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s), integrator=str(m.integrator)),
+                          model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s), integrator=str(m.integrator),
+                                              skirt_rings=int(cfg.cloth.skirt.model_rings),
+                                              skirt_around=int(cfg.cloth.skirt.model_around)),
                           features=feature_settings(cfg), alpha=float(cfg.cloth.fit.alpha))
 
 
@@ -105,3 +137,95 @@ def params_from_dict(d: dict[str, Any], where: str) -> ClothParams:
         return ClothParams(**{k: float(v) for k, v in d.items()})
     except (TypeError, ValueError) as e:
         raise ClothStageError(f"{where}: params are not valid ({e})") from None
+
+
+def read_selected(paths: list[str]) -> list[dict[str, Any]]:
+    """The ``params.yaml`` documents of ``select_cloth`` (names a missing file)."""
+    docs = []
+    for p in paths:
+        if not Path(p).is_file():
+            raise ClothStageError(f"{p}: params.yaml is missing")
+        doc = yaml.safe_load(Path(p).read_text()) or {}
+        if "params" not in doc:
+            raise ClothStageError(f"{p}: field 'params' is missing")
+        docs.append(doc)
+    return docs
+
+
+def fabric_sets(node: DictConfig, where: str) -> tuple[list[str], list[str], list[str], list[ClothParams]]:
+    """``(fabrics, params files, footage folders, parameter sets)`` of a matrix stage's inputs
+    (``fabrics``, ``params``, ``footage`` lists of one length under ``where``)."""
+    fabrics, pfiles, footage = list(node.fabrics), list(node.params), list(node.footage)
+    if not fabrics or not (len(fabrics) == len(pfiles) == len(footage)):
+        raise ClothStageError(f"{where}: fabrics ({len(fabrics)}), params ({len(pfiles)}) and footage "
+                              f"({len(footage)}) must be non-empty lists of one length")
+    sets = [params_from_dict(d["params"], p) for d, p in zip(read_selected(pfiles), pfiles)]
+    return fabrics, pfiles, footage, sets
+
+
+def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictConfig, names: list[str],
+                  what: str, keep_diagonal: bool = False) -> tuple[np.ndarray, list]:
+    """Error of every parameter set (rows) on every footage folder (columns), seed Figure 8.
+
+    Each set is simulated as it is (its own density: "fleece simulated against satin footage").
+
+    Returns:
+        ``(E, diagonal)``: the (sets, footage) matrix and, with ``keep_diagonal``, per footage
+        ``(trial, frames, EvalResult with images)`` of its own fabric's set (else an empty list).
+    """
+    E = np.zeros((len(param_sets), len(footage)))
+    diag = []
+    prog = Progress(E.size, f"{what} matrix", enabled=cfg.log.progress)
+    for j, f in enumerate(footage):
+        if keep_diagonal:
+            tr, frames = load_trial(f, cfg, with_frames=True)
+        else:
+            tr, frames = load_trial(f, cfg), None
+        obj = make_objective([tr], cfg)
+        for i, p in enumerate(param_sets):
+            r = obj.evaluate_params(p, keep=keep_diagonal and i == j)
+            E[i, j] = r.score
+            if keep_diagonal and i == j:
+                diag.append((tr, frames, r))
+            prog.update(note=f"{names[i]} parameters on {names[j]} footage")
+    return E, diag
+
+
+def matrix_figure(E: np.ndarray, names: list[str], xlabel: str, path: str | Path) -> int:
+    """Heatmap of an error matrix (each column over its minimum); returns the diagonal's column wins."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from vidsim.report.figures import save_figure
+
+    n = len(names)
+    wins = sum(int(np.argmin(E[:, j]) == j) for j in range(n))
+    fig, ax = plt.subplots(figsize=(1.3 * n + 2, 1.1 * n + 1.5))
+    R = E / E.min(axis=0, keepdims=True)
+    im = ax.imshow(R, cmap="viridis_r")
+    for i in range(n):
+        for j in range(n):
+            ax.text(j, i, f"{E[i, j]:.3g}", ha="center", va="center", fontsize=8,
+                    color="w" if R[i, j] > 0.5 * (R.max() + 1) else "k", weight="bold" if i == j else None)
+    ax.set_xticks(range(n), names)
+    ax.set_yticks(range(n), names)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("selected parameters of")
+    ax.set_title(f"error / column minimum; diagonal wins {wins}/{n}", fontsize=9)
+    fig.colorbar(im, ax=ax, shrink=0.8)
+    save_figure(fig, path)
+    return wins
+
+
+def matrix_csv(E: np.ndarray, names: list[str]) -> str:
+    """CSV text of an error matrix (rows: parameters, columns: footage)."""
+    return "params\\footage," + ",".join(names) + "\n" + "".join(
+        f"{names[i]}," + ",".join(f"{E[i, j]:.5g}" for j in range(E.shape[1])) + "\n" for i in range(E.shape[0]))
+
+
+def irradiance_to_uint8(img: np.ndarray) -> np.ndarray:
+    """A simulated (H, W) irradiance image scaled to 0-255 by its own maximum (for viewing)."""
+    im = np.nan_to_num(np.asarray(img, float), nan=0.0)
+    return np.clip(np.rint(255 * im / max(float(im.max()), 1e-9)), 0, 255).astype(np.uint8)

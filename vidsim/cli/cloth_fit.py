@@ -7,9 +7,11 @@ Features (silhouettes from the footage's own background model, angle maps) are e
 the footage; the corner paths, size and density come from ``meta.yaml``; the camera and projector
 from the footage's calibration. The coarse grid (``cloth.fit.grid_levels`` values of each
 ``grid_params``) is followed by simulated annealing (or CMA-ES, ``cloth.fit.method``) for
-``cloth.fit.budget`` evaluations. Every evaluation is appended to ``evals.jsonl`` in the output
-folder (fsync'd): a killed stage, run again, replays those evaluations without simulating and
-continues. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
+``cloth.fit.budget`` evaluations. With ``cloth.fit.footage=[folder1,folder2,...]`` the fit is
+*joint*: one parameter set minimising the sum of the trials' errors (the seed's "more general
+solution"); ``fit.yaml`` then also lists each trial's error. Every evaluation is appended to
+``evals.jsonl`` in the output folder (fsync'd): a killed stage, run again, replays those
+evaluations without simulating and continues. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
 selection), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
 silhouette and angle maps, per-frame error and the energy curve).
 """
@@ -24,7 +26,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_dict
+from vidsim.cli.cloth_common import ClothStageError, irradiance_to_uint8, load_trial, make_objective, params_dict
 from vidsim.clothfit.study import fit
 from vidsim.config import to_plain
 from vidsim.io.atomic import write_text, write_yaml
@@ -70,20 +72,24 @@ def candidates(cache_path: Path, space, k: int) -> list[dict]:
 
 def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
-    if not cfg.paths.footage:
-        raise ClothStageError("paths.footage is empty: give a cloth footage folder")
     fc = cfg.cloth.fit
+    folders = list(fc.footage) or ([cfg.paths.footage] if cfg.paths.footage else [])
+    if not folders:
+        raise ClothStageError("paths.footage is empty: give a cloth footage folder (or cloth.fit.footage=[...] for a "
+                              "joint fit over several trials)")
     t0 = time.perf_counter()
-    trial, frames = load_trial(cfg.paths.footage, cfg, with_frames=True)
-    obj = make_objective([trial], cfg)
+    trial, frames = load_trial(folders[0], cfg, with_frames=True)
+    trials = [trial] + [load_trial(f, cfg) for f in folders[1:]]
+    obj = make_objective(trials, cfg)
     t_feat = time.perf_counter() - t0
     space = obj.space
     n_grid = int(fc.grid_levels) ** len(fc.grid_params)
     total = n_grid + int(fc.budget)
-    print(f"fit_cloth {trial.name}: {trial.features.n_frames} frames, {space.dim} parameters {space.names}, "
+    label = "+".join(t.name for t in trials)
+    print(f"fit_cloth {label}: {sum(t.features.n_frames for t in trials)} frames, {space.dim} parameters {space.names}, "
           f"grid {n_grid} + {fc.method} {fc.budget} evaluations", flush=True)
     log = out / "evals.jsonl"
-    prog = Progress(total, f"fit_cloth {trial.name}", every_s=5.0, enabled=cfg.log.progress)
+    prog = Progress(total, f"fit_cloth {label}", every_s=5.0, enabled=cfg.log.progress)
     acfg = AnnealConfig(budget=int(fc.budget), cooling=float(fc.cooling), evals_per_T=int(fc.evals_per_T),
                         step=float(fc.step), min_step=float(fc.min_step), seed=int(fc.seed))
     n_before = obj.n_evals
@@ -103,7 +109,8 @@ def run(cfg: DictConfig) -> None:
     start = obj.params(space.from_unit(gpts[grid_best]), trial.density)
     ev = obj.evaluate(res.theta, keep=True)
     doc = {
-        "trial": trial.name, "footage": str(cfg.paths.footage), "method": str(fc.method),
+        "trial": label, "footage": folders[0] if len(folders) == 1 else folders, "method": str(fc.method),
+        "trials": [t.name for t in trials], "per_trial": [float(e) for e in ev.per_trial] if ev.ok else None,
         "score": float(res.score), "params": params_dict(best), "estimated": list(space.names),
         "start": {"score": float(res.grid_values[grid_best]), "params": params_dict(start)},
         "candidates": candidates(log, space, int(fc.n_candidates)),
@@ -130,22 +137,21 @@ def run(cfg: DictConfig) -> None:
     ax.set_yscale("log")
     ax.set_xlabel("evaluation")
     ax.set_ylabel("E (rad$^2$ + alpha px)")
-    ax.set_title(f"{trial.name}: {res.n_evals} evaluations, best {res.score:.4g}", fontsize=9)
+    ax.set_title(f"{label}: {res.n_evals} evaluations, best {res.score:.4g}", fontsize=9)
     ax.legend(fontsize=7)
     save_figure(fig, out / "energy.png")
     with make_logger(out / "cloth.rrd", "vidsim.fit_cloth", cfg.log.rerun) as lg:
         lg.series("fit/energy", vals, timeline="evaluation")
         lg.series("fit/best_energy", res.best_trace, timeline="evaluation")
         if ev.ok:
-            mesh_tris = obj._rigs[0][0].triangles
+            mesh_tris = obj.meshes[0].triangles
             for k in range(trial.features.n_frames):
                 lg.set_frame(k)
                 lg.image("footage/camera/image", frames[k])
                 lg.mask("footage/camera/silhouette", trial.features.sil[k])
                 # the fitted cloth's silhouette over the footage (same image space), and its rendering
                 lg.mask("footage/camera/fit_silhouette", ev.sil_sim[0][k])
-                sim = np.asarray(ev.images[0][k], float)
-                lg.image("fit/camera/image", np.clip(np.rint(255 * sim / max(float(np.nanmax(sim)), 1e-9)), 0, 255).astype(np.uint8))
+                lg.image("fit/camera/image", irradiance_to_uint8(ev.images[0][k]))
                 lg.image("footage/camera/angle_deg", np.nan_to_num(np.degrees(trial.features.theta[k]), nan=0.0).astype(np.float32))
                 lg.image("fit/camera/angle_deg", np.nan_to_num(np.degrees(ev.theta_sim[0][k]), nan=0.0).astype(np.float32))
                 lg.mesh3d("world/fit/cloth", ev.positions[0][k], mesh_tris, color=(0.2, 0.5, 0.9))
@@ -153,7 +159,7 @@ def run(cfg: DictConfig) -> None:
                 lg.scalar("fit/error/fold", float(ev.e_fold[0][k]))
                 lg.scalar("fit/error/silhouette", float(ev.e_silh[0][k]))
     write_yaml(out / "fit.yaml", doc)
-    print(f"fit_cloth {trial.name}: best E = {res.score:.4g} after {res.n_evals} evaluations ({n_new} simulated, "
+    print(f"fit_cloth {label}: best E = {res.score:.4g} after {res.n_evals} evaluations ({n_new} simulated, "
           f"{res.n_evals - n_new} replayed) in {t_fit:.1f} s", flush=True)
 
 

@@ -1,8 +1,8 @@
 """Stage ``validate_cloth``: the fabric validation matrix (seed Figure 8) and Table 1.
 
-Every fabric's selected parameters (``params.yaml`` of ``select_cloth``) are simulated on every
-fabric's *held-out* footage (the robot motion, never used for fitting) and scored with the same
-metric: ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: footage; the diagonal should
+Every fabric's selected parameters (``params.yaml`` of ``select_cloth``, its own density included)
+are simulated on every fabric's *held-out* footage (the robot motion, never used for fitting) and
+scored with the same metric: ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: footage; the diagonal should
 win each column). ``table1.csv`` / ``table1.png`` collect per fabric the grid start, each trial's
 optimum and the selected set with E1, E2 and the cross errors (from ``select_cloth``'s table).
 """
@@ -12,13 +12,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective
+from vidsim.cli.cloth_common import (
+    fabric_matrix,
+    fabric_sets,
+    matrix_csv,
+    matrix_figure,
+    read_selected,
+)
 from vidsim.io.atomic import write_text, write_yaml
-from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 
 SHOWN = ("bend", "stretch", "shear", "drag_linear", "drag_quad")
@@ -26,48 +30,18 @@ SHOWN = ("bend", "stretch", "shear", "drag_linear", "drag_quad")
 
 def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
-    v = cfg.cloth.validate
-    fabrics, pfiles, footage = list(v.fabrics), list(v.params), list(v.footage)
-    if not fabrics or not (len(fabrics) == len(pfiles) == len(footage)):
-        raise ClothStageError(f"cloth.validate: fabrics ({len(fabrics)}), params ({len(pfiles)}) and footage "
-                              f"({len(footage)}) must be non-empty lists of one length")
-    sel = []
-    for p in pfiles:
-        if not Path(p).is_file():
-            raise ClothStageError(f"{p}: params.yaml is missing")
-        sel.append(yaml.safe_load(Path(p).read_text()))
+    fabrics, pfiles, footage, sets = fabric_sets(cfg.cloth.validate, "cloth.validate")
+    sel = read_selected(pfiles)
+    E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth")
     n = len(fabrics)
-    E = np.zeros((n, n))
-    prog = Progress(n * n, "validate_cloth matrix", enabled=cfg.log.progress)
-    for j, f in enumerate(footage):
-        tr = load_trial(f, cfg)
-        obj = make_objective([tr], cfg)
-        for i, s in enumerate(sel):
-            th = np.array([float(s["params"][k]) for k in obj.space.names])
-            E[i, j] = obj.evaluate(th).score
-            prog.update(note=f"{fabrics[i]} params on {fabrics[j]} footage")
     wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]
-    write_text(out / "matrix.csv", "params\\footage," + ",".join(fabrics) + "\n" + "".join(
-        f"{fabrics[i]}," + ",".join(f"{E[i, j]:.5g}" for j in range(n)) + "\n" for i in range(n)))
+    write_text(out / "matrix.csv", matrix_csv(E, fabrics))
+    matrix_figure(E, fabrics, "held-out footage (robot motion)", out / "matrix.png")
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(1.3 * n + 2, 1.1 * n + 1.5))
-    R = E / E.min(axis=0, keepdims=True)
-    im = ax.imshow(R, cmap="viridis_r")
-    for i in range(n):
-        for j in range(n):
-            ax.text(j, i, f"{E[i, j]:.3g}", ha="center", va="center", fontsize=8,
-                    color="w" if R[i, j] > 0.5 * (R.max() + 1) else "k", weight="bold" if i == j else None)
-    ax.set_xticks(range(n), fabrics)
-    ax.set_yticks(range(n), fabrics)
-    ax.set_xlabel("held-out footage (robot motion)")
-    ax.set_ylabel("selected parameters of")
-    ax.set_title(f"error / column minimum; diagonal wins {sum(wins)}/{n}", fontsize=9)
-    fig.colorbar(im, ax=ax, shrink=0.8)
-    save_figure(fig, out / "matrix.png")
     # Table 1: per fabric the grid start, every candidate with its error on each trial (own and
     # cross) and their sum, the selected row marked
     rows = []

@@ -2,7 +2,8 @@
 
 For parameters ``theta`` the estimator's simulator (:func:`vidsim.cloth.simulate`, "fast"
 velocity-Verlet at its stable step) moves a swatch whose top corners follow the *measured*
-paths of ``meta.yaml``; every frame is rendered by the fast rasteriser with the *calibrated*
+paths of ``meta.yaml`` (or a skirt whose waistband follows the measured body, with the legs as
+colliders: :mod:`vidsim.clothfit.rig`); every frame is rendered by the fast rasteriser with the *calibrated*
 camera and projector (:func:`vidsim.render.projector.render_stripes_batch`, shadows on); the
 simulated silhouette is where the rasteriser hit the cloth; angle maps come from the same
 filter bank as the footage's; and the error is :func:`vidsim.video.anglemap.cloth_metric`
@@ -23,6 +24,7 @@ import numpy as np
 from vidsim.cloth import ESTIMATED_NAMES, ClothParams, mid_range_params, simulate
 from vidsim.clothfit.features import ClothFeatures, FeatureSettings, angle_features
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
+from vidsim.clothfit.rig import SkirtBody, skirt_model_rig
 from vidsim.errors import VidsimError
 from vidsim.optim import FAILED_SCORE
 from vidsim.optim.space import Space
@@ -45,11 +47,12 @@ class Trial:
         name: label (e.g. ``linen/exp1``).
         features: footage features of the cloth frames.
         times: (T,) frame times, seconds.
-        corner_paths: (T, 2, 3) measured corner positions, metres.
+        corner_paths: (T, 2, 3) measured corner positions, metres ((T, 0, 3) for a skirt).
         camera: calibrated camera.
         projector: calibrated projector with the known stripe pattern.
-        size: swatch side, metres (measured).
+        size: swatch side, metres (measured; unused for a skirt).
         density: areal density, kg/m^2 (measured).
+        skirt: the measured body motion and cut of a skirt trial (None: a swatch trial).
     """
 
     name: str
@@ -60,14 +63,18 @@ class Trial:
     projector: Projector
     size: float
     density: float
+    skirt: SkirtBody | None = None
 
     def __post_init__(self) -> None:
         T = self.features.n_frames
         self.times = np.asarray(self.times, float)
         self.corner_paths = np.asarray(self.corner_paths, float)
-        if self.times.shape != (T,) or self.corner_paths.shape != (T, 2, 3):
+        n_grip = 0 if self.skirt is not None else 2
+        if self.times.shape != (T,) or self.corner_paths.shape != (T, n_grip, 3):
             raise ObjectiveError(f"trial {self.name}: {T} feature frames but times {self.times.shape} and corner "
-                                 f"paths {self.corner_paths.shape}")
+                                 f"paths {self.corner_paths.shape} (expected ({T}, {n_grip}, 3))")
+        if self.skirt is not None and self.skirt.n_frames != T:
+            raise ObjectiveError(f"trial {self.name}: {T} feature frames but the skirt body has {self.skirt.n_frames}")
         if self.features.sil.shape[1:] != (self.camera.height, self.camera.width):
             raise ObjectiveError(f"trial {self.name}: frames {self.features.sil.shape[1:]} differ from the calibrated "
                                  f"camera ({self.camera.height}, {self.camera.width})")
@@ -78,16 +85,23 @@ class Trial:
         if max_frames > 0:
             idx = idx[:max_frames]
         return Trial(self.name, self.features.subset(idx), self.times[idx], self.corner_paths[idx], self.camera,
-                     self.projector, self.size, self.density)
+                     self.projector, self.size, self.density,
+                     None if self.skirt is None else self.skirt.subset(idx))
 
 
 @dataclass(frozen=True)
 class ModelSettings:
-    """The estimator's simulator settings (see :class:`vidsim.config.cloth.ClothModelConfig`)."""
+    """The estimator's simulator settings (see :class:`vidsim.config.cloth.ClothModelConfig`).
+
+    ``resolution``: swatch vertices per side; ``skirt_rings``/``skirt_around``: the skirt model's
+    rings and vertices per ring.
+    """
 
     resolution: int = 20
     settle_s: float = 0.5
     integrator: str = "fast"
+    skirt_rings: int = 8
+    skirt_around: int = 24
 
 
 @dataclass
@@ -156,10 +170,20 @@ class ClothObjective:
         self.fixed = dict(fixed or {})
         self._rigs = []
         for tr in trials:
-            mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
-            drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)
-            self._rigs.append((mesh, drv, t0))
+            if tr.skirt is not None:
+                mesh, drv, t0, col = skirt_model_rig(tr.skirt, tr.times, model.skirt_rings, model.skirt_around,
+                                                     model.settle_s)
+            else:
+                mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
+                drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)
+                col = None
+            self._rigs.append((mesh, drv, t0, col))
         self.n_evals = 0
+
+    @property
+    def meshes(self) -> list:
+        """The model mesh of each trial (:class:`~vidsim.cloth.ClothMesh`)."""
+        return [r[0] for r in self._rigs]
 
     # ------------------------------------------------------------------ parameters
     def params(self, theta: np.ndarray, density: float) -> ClothParams:
@@ -174,21 +198,31 @@ class ClothObjective:
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, theta: np.ndarray, keep: bool = False) -> EvalResult:
-        """Evaluate physical parameters ``theta`` (space order, SI units).
+        """Evaluate physical parameters ``theta`` (space order, SI units; each trial's own density).
 
         Args:
             theta: (n,) estimated parameters.
             keep: also return positions, simulated angle maps, silhouettes and images.
         """
+        return self._evaluate([self.params(theta, tr.density) for tr in self.trials], keep)
+
+    def evaluate_params(self, params: ClothParams, keep: bool = False) -> EvalResult:
+        """Evaluate one complete parameter set (all nine and its density) on every trial.
+
+        This is how another fabric's parameters are tried on this footage (validation matrices):
+        the set is simulated as it is, its own density included.
+        """
+        return self._evaluate([params] * len(self.trials), keep)
+
+    def _evaluate(self, plist: list[ClothParams], keep: bool) -> EvalResult:
         timing = {"simulate": 0.0, "render": 0.0, "anglemap": 0.0, "metric": 0.0}
         per, ef, es = [], [], []
         out = EvalResult(FAILED_SCORE, per, ef, es, True, None, timing)
         self.n_evals += 1
-        for tr, (mesh, drv, t0) in zip(self.trials, self._rigs):
-            p = self.params(theta, tr.density)
+        for tr, (mesh, drv, t0, col), p in zip(self.trials, self._rigs, plist):
             t = time.perf_counter()
             try:
-                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0)
+                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col)
             except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
                 timing["simulate"] += time.perf_counter() - t
                 out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"

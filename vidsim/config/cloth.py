@@ -81,6 +81,8 @@ class ClothRealityConfig:
 
     ``kind``: ``mujoco`` (MuJoCo flex, the fabrics of :mod:`vidsim.reality.cloth`) or ``twin``
     (the estimator's own simulator at ``twin_resolution`` with the known ``twin_params``).
+    ``object``: ``swatch`` (gripped by two corners along ``motion``) or ``skirt`` (on the skipping
+    body of ``cloth.skirt``; MuJoCo only).
     ``effects``: ``{effect: {key: value}}`` over :data:`vidsim.reality.cloth.DEFAULT_EFFECTS`
     (all off by default). ``fabric_effects``: per fabric extra effects merged on top.
     Imaging effects: ``motion_blur`` sub-samples per exposure (0 off) with ``exposure`` as a
@@ -89,6 +91,7 @@ class ClothRealityConfig:
     """
 
     kind: str = "mujoco"
+    object: str = "swatch"
     fabric: str = "linen"
     motion: str = "exp1"
     n_frames: int = 50
@@ -190,6 +193,7 @@ class ClothFitConfig:
     method: str = "anneal"
     n_candidates: int = 3
     estimate: list[str] = field(default_factory=list)
+    footage: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -211,17 +215,73 @@ class ClothValidateConfig:
 
 
 @dataclass
-class ClothSkirtConfig:
-    """Skirt generalisation (Figure 9): reality and estimator resolutions, frames."""
+class ClothProfileConfig:
+    """Error profiles (``profile_cloth``): ``points`` per parameter across its range; a parameter is
+    *determined* when the range within ``tol`` (relative error rise) of the estimate is at most
+    ``max_width`` of its range. ``params``/``footage``: inputs (Snakemake fills them)."""
 
+    points: int = 7
+    tol: float = 0.05
+    max_width: float = 0.5
+    params: str = ""
+    footage: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ClothTwinConfig:
+    """Scoring of the twin reality (``score_cloth_twin``, reads the truth beside ``footage``): the
+    twin's selected ``params.yaml``, its ``profile.yaml`` and its held-out footage folder (Snakemake
+    fills them).
+    Targets (issue 5): held-out error within ``heldout_ratio`` of the true parameters' error,
+    ``rel_tol`` relative error on the parameters named in ``rel_tol_params``."""
+
+    params: str = ""
+    profile: str = ""
+    footage: str = ""
+    heldout_ratio: float = 1.10
+    rel_tol: float = 0.25
+    rel_tol_params: list[str] = field(default_factory=lambda: ["bend", "shear"])
+
+
+@dataclass
+class ClothCompareConfig:
+    """Inputs of ``compare_cloth`` (Snakemake fills them): per fabric its held-out footage, the
+    annealing and CMA-ES selections (``params.yaml``), the joint fit (``fit.yaml``) and the fits'
+    ``trace.csv`` files (per fabric its trials in order; one joint trace per fabric)."""
+
+    fabrics: list[str] = field(default_factory=list)
+    heldout: list[str] = field(default_factory=list)
+    anneal: list[str] = field(default_factory=list)
+    cmaes: list[str] = field(default_factory=list)
+    joint: list[str] = field(default_factory=list)
+    anneal_traces: list[str] = field(default_factory=list)
+    cmaes_traces: list[str] = field(default_factory=list)
+    joint_traces: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ClothSkirtConfig:
+    """Skirt generalisation (seed Figure 9).
+
+    Reality (``cloth.reality.object=skirt``) dresses the skipping body ``motion`` (a name of
+    :data:`vidsim.reality.cloth.SKIRT_MOTIONS`) with a MuJoCo skirt of ``rings`` x ``around``
+    vertices, filmed for ``n_frames`` at ``fps`` in the swatch's studio (same calibrated camera and
+    projector). The estimator's skirt has ``model_rings`` x ``model_around`` vertices.
+    ``video_frames``: frames of the side-by-side videos (0 = all). ``fabrics``/``params``/``footage``:
+    inputs of ``skirt_cloth`` (Snakemake fills them): per fabric its ``params.yaml`` and skirt footage.
+    """
+
+    motion: str = "skip"
     n_frames: int = 40
     fps: float = 30.0
     rings: int = 9
     around: int = 28
     model_rings: int = 8
     model_around: int = 24
-    camera_eye: list[float] = _l(0.0, -2.4, 0.85)
-    camera_target: list[float] = _l(0.0, 0.0, 0.8)
+    video_frames: int = 0
+    fabrics: list[str] = field(default_factory=list)
+    params: list[str] = field(default_factory=list)
+    footage: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -239,3 +299,6 @@ class ClothConfig:
     select: ClothSelectConfig = field(default_factory=ClothSelectConfig)
     validate: ClothValidateConfig = field(default_factory=ClothValidateConfig)
     skirt: ClothSkirtConfig = field(default_factory=ClothSkirtConfig)
+    profile: ClothProfileConfig = field(default_factory=ClothProfileConfig)
+    twin: ClothTwinConfig = field(default_factory=ClothTwinConfig)
+    compare: ClothCompareConfig = field(default_factory=ClothCompareConfig)

@@ -4,7 +4,8 @@ from pathlib import Path
 
 def cloth_folders(paths):
     """Hydra list of the folders holding the given files: [a,b,...]."""
-    return "[" + ",".join(str(Path(p).parent) for p in paths) + "]"
+    folders = ",".join(str(Path(p).parent) for p in paths)
+    return f"[{folders}]"
 
 
 def cloth_select_inputs(wildcards, input):
@@ -25,5 +26,25 @@ def cloth_fabric_overrides(wildcards):
 
 
 def cloth_fabric_reality_overrides(wildcards):
-    """Hydra overrides of one fabric's reality (the `cloth.per_fabric_reality` map), e.g. effects."""
-    return (CLOTH.get("per_fabric_reality", {}) or {}).get(wildcards.fabric, "") or ""
+    """Hydra overrides of one fabric's reality (the `cloth.per_fabric_reality` map), e.g. effects;
+    a twin (a name in `cloth.twins`) is filmed from the estimator's own simulator."""
+    own = (CLOTH.get("per_fabric_reality", {}) or {}).get(wildcards.fabric, "") or ""
+    return f"cloth.reality.kind=twin {own}".strip() if wildcards.fabric in CLOTH_TWINS else own
+
+
+def cloth_skirt_inputs(wildcards, input):
+    """cloth.skirt.* overrides: fabrics, their params.yaml and skirt footage folders."""
+    return (f"cloth.skirt.fabrics=[{','.join(CLOTH_FABRICS)}] cloth.skirt.params=[{','.join(input.params)}] "
+            f"cloth.skirt.footage={cloth_folders(input.metas)}")
+
+
+def cloth_compare_inputs(wildcards, input):
+    """cloth.compare.* overrides of compare_cloth (lists in the order of `cloth.compare`)."""
+    lists = " ".join(f"cloth.compare.{k}=[{','.join(input[k])}]" for k in
+                     ("anneal", "cmaes", "joint", "anneal_traces", "cmaes_traces", "joint_traces"))
+    return f"cloth.compare.fabrics=[{','.join(CLOTH_COMPARE)}] cloth.compare.heldout={cloth_folders(input.heldout)} {lists}"
+
+
+def cloth_meta_folders(wildcards, input):
+    """Hydra list of the footage folders of a rule's `metas` input (the fitted trials)."""
+    return cloth_folders(input.metas)

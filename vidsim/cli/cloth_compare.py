@@ -1,0 +1,130 @@
+"""Stage ``compare_cloth``: per-trial annealing vs joint annealing vs CMA-ES, on held-out motion.
+
+Beyond the seed (issue 5): for each fabric of ``cloth.compare.fabrics`` three estimates, each
+simulated on the fabric's *held-out* footage (the robot motion, never fitted):
+
+* ``anneal``: the seed's procedure, annealing per trial then cross-trial selection (E1 + E2);
+* ``joint``: one annealing over both trials at once (their errors summed), the seed's "more
+  general solution";
+* ``cmaes``: CMA-ES per trial at the same evaluation budget, then the same selection.
+
+Inputs (Snakemake fills them, one entry per fabric in order): ``heldout`` footage folders,
+``anneal``/``cmaes`` selected ``params.yaml``, ``joint`` ``fit.yaml``; and the fits' ``trace.csv``
+files (``anneal_traces``/``cmaes_traces``: per fabric its trials in order; ``joint_traces``).
+Writes ``compare.csv`` / ``compare.yaml`` (held-out error per fabric and method, and the budget each
+used in trial simulations: a joint evaluation simulates every trial),
+``heldout.png`` and ``curves.png`` (best error so far against evaluations, annealing vs CMA-ES).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import yaml
+from omegaconf import DictConfig
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_from_dict, read_selected
+from vidsim.io.atomic import write_text, write_yaml
+from vidsim.log.progress import Progress
+from vidsim.report.figures import save_figure
+
+METHODS = ("anneal", "joint", "cmaes")
+
+
+def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """``(energy, best_so_far)`` columns of a fit's ``trace.csv`` (names a missing file)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ClothStageError(f"{p}: trace.csv is missing")
+    with p.open() as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows or not {"energy", "best_so_far"} <= set(rows[0]):
+        raise ClothStageError(f"{p}: expected columns energy and best_so_far")
+    return np.array([float(r["energy"]) for r in rows]), np.array([float(r["best_so_far"]) for r in rows])
+
+
+def run(cfg: DictConfig) -> None:
+    out = Path(cfg.paths.out)
+    cc = cfg.cloth.compare
+    fabrics = list(cc.fabrics)
+    n = len(fabrics)
+    lists = {k: list(cc[k]) for k in ("heldout", "anneal", "cmaes", "joint")}
+    if not n or any(len(v) != n for v in lists.values()):
+        raise ClothStageError(f"cloth.compare: fabrics ({n}) and heldout/anneal/cmaes/joint "
+                              f"({', '.join(str(len(v)) for v in lists.values())}) must be lists of one length")
+    nt = len(cc.anneal_traces) // n if n else 0
+    if len(cc.anneal_traces) != nt * n or len(cc.cmaes_traces) != nt * n or len(cc.joint_traces) != n or nt < 1:
+        raise ClothStageError("cloth.compare: anneal_traces and cmaes_traces need the same number of trials per fabric, "
+                              "joint_traces one per fabric")
+    for p in lists["joint"]:
+        if not Path(p).is_file():
+            raise ClothStageError(f"{p}: fit.yaml is missing")
+    sets = {
+        "anneal": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["anneal"]), lists["anneal"])],
+        "cmaes": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["cmaes"]), lists["cmaes"])],
+        "joint": [params_from_dict(yaml.safe_load(Path(p).read_text())["params"], p) for p in lists["joint"]],
+    }
+    E = np.zeros((n, len(METHODS)))
+    prog = Progress(E.size, "compare_cloth held-out", enabled=cfg.log.progress)
+    for i, f in enumerate(lists["heldout"]):
+        obj = make_objective([load_trial(f, cfg)], cfg)
+        for m, meth in enumerate(METHODS):
+            E[i, m] = obj.evaluate_params(sets[meth][i]).score
+            prog.update(note=f"{fabrics[i]} {meth}")
+    traces = {"anneal": [read_trace(p) for p in cc.anneal_traces], "cmaes": [read_trace(p) for p in cc.cmaes_traces],
+              "joint": [read_trace(p) for p in cc.joint_traces]}
+    # budget in trial simulations: a joint evaluation simulates every trial
+    evals = {m: [int(sum(len(traces[m][i * nt + k][0]) for k in range(nt))) for i in range(n)] for m in ("anneal", "cmaes")}
+    evals["joint"] = [nt * len(t[0]) for t in traces["joint"]]
+    best = [METHODS[int(np.argmin(E[i]))] for i in range(n)]
+    write_text(out / "compare.csv", "fabric," + ",".join(f"heldout_{m}" for m in METHODS) + "," +
+               ",".join(f"simulations_{m}" for m in METHODS) + ",best\n" + "".join(
+                   f"{fab}," + ",".join(f"{E[i, m]:.5g}" for m in range(len(METHODS))) + "," +
+                   ",".join(str(evals[m][i]) for m in METHODS) + f",{best[i]}\n" for i, fab in enumerate(fabrics)))
+    write_yaml(out / "compare.yaml", {
+        "fabrics": fabrics, "methods": list(METHODS), "heldout_error": E.tolist(), "trial_simulations": evals,
+        "best_on_heldout": dict(zip(fabrics, best)),
+        "wins": {m: int(sum(b == m for b in best)) for m in METHODS}})
+    _figures(fabrics, E, traces, nt, out)
+    print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best)), flush=True)
+
+
+def _figures(fabrics: list[str], E: np.ndarray, traces: dict, nt: int, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(fabrics)
+    fig, ax = plt.subplots(figsize=(1.6 * n + 2.5, 3))
+    w = 0.27
+    for m, meth in enumerate(METHODS):
+        ax.bar(np.arange(n) + (m - 1) * w, E[:, m], w, label=meth)
+    ax.set_xticks(range(n), fabrics)
+    ax.set_ylabel("held-out error (robot motion)")
+    ax.legend(fontsize=7)
+    ax.set_title("per-trial annealing + selection vs joint annealing vs CMA-ES + selection", fontsize=8)
+    save_figure(fig, out / "heldout.png")
+    fig, axes = plt.subplots(1, n, figsize=(3.4 * n, 2.8), squeeze=False)
+    for i, (ax, fab) in enumerate(zip(axes[0], fabrics)):
+        for k in range(nt):
+            for meth, ls in (("anneal", "-"), ("cmaes", "--")):
+                _, b = traces[meth][i * nt + k]
+                ax.plot(np.arange(1, b.size + 1), b, ls, color=f"C{k}", label=f"{meth} trial {k + 1}")
+        ax.set_yscale("log")
+        ax.set_xlabel("evaluation (grid included)")
+        ax.set_title(fab, fontsize=8)
+        ax.tick_params(labelsize=7)
+        if i == 0:
+            ax.set_ylabel("best error so far")
+            ax.legend(fontsize=6)
+    save_figure(fig, out / "curves.png")
+
+
+main = stage_app("compare_cloth", run)
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,89 @@
+"""Stage ``profile_cloth``: which parameters one fabric's footage determines (error profiles).
+
+``python -m vidsim.cli.cloth_profile paths.out=results/cloth/profile/linen
+cloth.profile.params=results/cloth/select/linen/params.yaml
+cloth.profile.footage=[results/footage/cloth_linen_exp1,results/footage/cloth_linen_exp2]``
+
+Around the selected parameters, each estimated parameter is swept across its whole range with the
+others held, on the fitted trials together (E1 + E2, the selection's criterion); see
+:mod:`vidsim.clothfit.profile`. Writes ``profile.yaml`` (per parameter: estimate, ``determined``,
+indifference interval, its width as a fraction of the range), ``profiles.csv`` and
+``profiles.png`` (one panel per parameter; a flat profile is labelled "not determined").
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from omegaconf import DictConfig
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, read_selected
+from vidsim.clothfit.profile import profile_parameters
+from vidsim.io.atomic import write_text, write_yaml
+from vidsim.log.progress import Progress
+from vidsim.optim import FAILED_SCORE
+from vidsim.report.figures import save_figure
+
+
+def run(cfg: DictConfig) -> None:
+    out = Path(cfg.paths.out)
+    pc = cfg.cloth.profile
+    if not pc.params or not list(pc.footage):
+        raise ClothStageError("cloth.profile.params (a params.yaml) and cloth.profile.footage (the fitted trials' "
+                              "folders) must be given")
+    sel = read_selected([str(pc.params)])[0]
+    trials = [load_trial(f, cfg) for f in pc.footage]
+    obj = make_objective(trials, cfg)
+    missing = [n for n in obj.space.names if n not in sel["params"]]
+    if missing:
+        raise ClothStageError(f"{pc.params}: params lack {missing}")
+    theta = np.array([float(sel["params"][n]) for n in obj.space.names])
+    n_eval = obj.space.dim * int(pc.points) + 1
+    prog = Progress(n_eval, "profile_cloth", enabled=cfg.log.progress)
+    profs = profile_parameters(obj, theta, points=int(pc.points), tol=float(pc.tol), max_width=float(pc.max_width),
+                               on_eval=lambda n, v, e: prog.update(note=f"{n} = {v:.3g}: E = {e:.4g}"))
+    doc = {"params": str(pc.params), "footage": list(pc.footage), "tol": float(pc.tol),
+           "max_width": float(pc.max_width), "profiles": {p.name: p.to_dict() for p in profs},
+           "not_determined": [p.name for p in profs if not p.determined]}
+    write_text(out / "profiles.csv", "parameter,unit_position,value,error\n" + "".join(
+        f"{p.name},{u:.4f},{v:.6g},{e:.6g}\n" for p in profs for u, v, e in zip(p.u, p.values, p.errors)))
+    _figure(profs, obj.space, float(pc.tol), out / "profiles.png")
+    write_yaml(out / "profile.yaml", doc)
+    print(f"profile_cloth: not determined by the footage: {doc['not_determined'] or 'none'}", flush=True)
+
+
+def _figure(profs, space, tol: float, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(profs)
+    cols = min(3, n)
+    rows = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(3.3 * cols, 2.4 * rows), squeeze=False)
+    for ax, p, axis in zip(axes.ravel(), profs, space.axes):
+        ok = p.errors < FAILED_SCORE
+        ax.plot(p.values[ok], p.errors[ok] / p.e_hat, "o-", ms=3)
+        ax.axhspan(0, 1 + tol, color="0.9", zorder=0)
+        ax.axvline(p.values[np.argmin(np.abs(p.u - p.u_hat))], color="C3", lw=0.8)
+        ax.axvspan(*p.interval, color="C2", alpha=0.15)
+        if axis.log:
+            ax.set_xscale("log")
+        ax.set_ylim(bottom=max(0.0, np.nanmin(p.errors[ok] / p.e_hat) - 0.05) if ok.any() else 0)
+        ax.set_title(f"{p.name}: " + ("determined" if p.determined else "NOT determined (flat)"), fontsize=8,
+                     color="k" if p.determined else "C3")
+        ax.tick_params(labelsize=7)
+        ax.set_ylabel("E / E(estimate)", fontsize=7)
+    for ax in axes.ravel()[n:]:
+        ax.set_axis_off()
+    fig.suptitle(f"error profiles (grey: within {tol:.0%} of the estimate; green: indifference interval)", fontsize=8)
+    save_figure(fig, path)
+
+
+main = stage_app("profile_cloth", run)
+
+if __name__ == "__main__":
+    main()

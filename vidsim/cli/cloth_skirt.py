@@ -1,0 +1,99 @@
+"""Stage ``skirt_cloth``: skirt generalisation (seed Figure 9) of the fabrics' selected parameters.
+
+``python -m vidsim.cli.cloth_skirt paths.out=results/cloth/skirt cloth.skirt.fabrics=[linen,satin]
+cloth.skirt.params=[.../linen/params.yaml,...] cloth.skirt.footage=[results/footage/skirt_linen,...]``
+(Snakemake fills the three lists).
+
+Reality films a MuJoCo skirt of each fabric on a skipping body (``reality_cloth`` with
+``cloth.reality.object=skirt``); the body's motion is known (``meta.yaml``: waist pose and leg
+capsules per frame, like motion capture). Here the estimator's simulator dresses that motion with
+each fabric's *selected* swatch parameters (never refitted on skirts), films it with the calibrated
+camera and projector, and scores it against every skirt footage with the swatch metric:
+``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: skirt footage; the diagonal should win
+each column), ``skirt.yaml`` (matrix, wins), per fabric ``side_by_side_<fabric>.mp4`` (footage |
+simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from omegaconf import DictConfig
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.cloth_common import (
+    fabric_matrix,
+    fabric_sets,
+    irradiance_to_uint8,
+    matrix_csv,
+    matrix_figure,
+)
+from vidsim.io.atomic import write_text, write_yaml
+from vidsim.io.video import write_animation
+from vidsim.log import make_logger
+from vidsim.report.figures import save_figure
+
+
+def run(cfg: DictConfig) -> None:
+    out = Path(cfg.paths.out)
+    sk = cfg.cloth.skirt
+    fabrics, pfiles, footage, sets = fabric_sets(cfg.cloth.skirt, "cloth.skirt")
+    E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True)
+    n = len(fabrics)
+    wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]
+    write_text(out / "matrix.csv", matrix_csv(E, fabrics))
+    matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png")
+    nv = int(sk.video_frames)
+    stills = []
+    with make_logger(out / "skirt.rrd", "vidsim.skirt_cloth", cfg.log.rerun) as lg:
+        for fab, (tr, frames, r) in zip(fabrics, diag):
+            if not r.ok:
+                print(f"skirt_cloth: {fab} parameters failed on their own skirt: {r.failure}", flush=True)
+                continue
+            sim = np.stack([np.repeat(irradiance_to_uint8(im)[..., None], 3, axis=2) for im in r.images[0]])
+            both = np.concatenate([frames, sim], axis=2)[: nv or None]
+            write_animation(out / f"side_by_side_{fab}.mp4", both, float(sk.fps))
+            stills.append((fab, both[[0, len(both) // 2, len(both) - 1]]))
+            tris = _tris(tr, cfg)
+            for k in range(tr.features.n_frames):
+                lg.set_frame(k)
+                lg.image(f"footage/{fab}/camera/image", frames[k])
+                lg.mask(f"footage/{fab}/camera/silhouette", tr.features.sil[k])
+                lg.image(f"sim/{fab}/camera/image", sim[k])
+                lg.mesh3d(f"world/{fab}/skirt", r.positions[0][k], tris, color=(0.2, 0.5, 0.9))
+                lg.scalar(f"metric/{fab}/error", float(r.e_fold[0][k] + cfg.cloth.fit.alpha * r.e_silh[0][k]))
+    _stills_figure(stills, out / "side_by_side.png")
+    write_yaml(out / "skirt.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
+                                    "of": n, "wins_per_footage": dict(zip(fabrics, wins)), "params": pfiles,
+                                    "footage": footage})
+    print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}", flush=True)
+
+
+def _tris(tr, cfg: DictConfig) -> np.ndarray:
+    from vidsim.clothfit.rig import skirt_model_mesh
+
+    return skirt_model_mesh(tr.skirt, int(cfg.cloth.skirt.model_rings), int(cfg.cloth.skirt.model_around))[0].triangles
+
+
+def _stills_figure(stills: list, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    if not stills:
+        return
+    fig, axes = plt.subplots(len(stills), 3, figsize=(9, 1.7 * len(stills) + 0.4), squeeze=False)
+    for row, (fab, ims) in zip(axes, stills):
+        for ax, im, lab in zip(row, ims, ("first", "middle", "last")):
+            ax.imshow(im)
+            ax.set_axis_off()
+            ax.set_title(f"{fab}: footage | model ({lab} frame)", fontsize=7)
+    save_figure(fig, path)
+
+
+main = stage_app("skirt_cloth", run)
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,116 @@
+"""Error profiles: which cloth parameters the footage determines (issue 5, twin criteria).
+
+Along each estimated parameter the objective is evaluated on a grid across its whole range (unit
+cube of :class:`~vidsim.optim.space.Space`, log axes in log) with every other parameter at the
+estimate. The *indifference interval* is where the profile stays within ``tol`` (relative) of the
+error at the estimate; a parameter whose interval covers more than ``max_width`` of its range has a
+flat profile: the footage does not determine it, and it is reported as such instead of as a number.
+Everything here reads footage errors only (never truth).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vidsim.optim import FAILED_SCORE
+
+__all__ = ["Profile", "profile_parameters", "indifference_interval"]
+
+
+@dataclass
+class Profile:
+    """The error profile of one parameter.
+
+    Attributes:
+        name: parameter name.
+        u: (K,) sorted unit-cube positions evaluated (the estimate's included).
+        values: (K,) the parameter's values there (SI).
+        errors: (K,) objective values (FAILED_SCORE where the simulation failed).
+        u_hat: the estimate's unit position. e_hat: error at the estimate.
+        interval_u: (lo, hi) unit positions of the indifference interval.
+        interval: (lo, hi) the same in the parameter's unit.
+        width: interval width as a fraction of the range.
+        determined: ``width <= max_width``.
+        best_u: unit position of the profile's minimum (an estimate that is not at its own
+            profile minimum shows the optimiser stopped short along this axis).
+    """
+
+    name: str
+    u: np.ndarray
+    values: np.ndarray
+    errors: np.ndarray
+    u_hat: float
+    e_hat: float
+    interval_u: tuple[float, float]
+    interval: tuple[float, float]
+    width: float
+    determined: bool
+    best_u: float
+
+    def to_dict(self) -> dict:
+        return {"estimate": float(self.values[np.argmin(np.abs(self.u - self.u_hat))]), "determined": bool(self.determined),
+                "interval": [float(x) for x in self.interval], "width_fraction": float(self.width),
+                "error_at_estimate": float(self.e_hat), "profile_min_value": float(self.values[np.argmin(self.errors)]),
+                "profile_min_error": float(np.min(self.errors))}
+
+
+def indifference_interval(u: np.ndarray, e: np.ndarray, u_hat: float, e_hat: float, tol: float) -> tuple[float, float]:
+    """The connected range around ``u_hat`` where the (linearly interpolated) profile stays
+    at or below ``e_hat (1 + tol)``; sorted ``u``; unit positions."""
+    thr = e_hat * (1.0 + tol)
+    k = int(np.argmin(np.abs(u - u_hat)))
+
+    def walk(step: int) -> float:
+        i = k
+        while 0 <= i + step < len(u):
+            j = i + step
+            if e[j] > thr:  # crossing between i and j
+                if e[i] >= e[j]:
+                    return float(u[i])
+                return float(u[i] + (thr - e[i]) / (e[j] - e[i]) * (u[j] - u[i]))
+            i = j
+        return float(u[i])
+
+    return walk(-1), walk(+1)
+
+
+def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: float = 0.05,
+                       max_width: float = 0.5, on_eval=None) -> list[Profile]:
+    """Profiles of every estimated parameter around ``theta_hat``.
+
+    Args:
+        objective: a :class:`~vidsim.clothfit.objective.ClothObjective` (or anything with
+            ``space`` and ``evaluate(theta) -> .score``).
+        theta_hat: (n,) the estimate (space order, SI).
+        points: grid points across each range (the estimate is added).
+        tol: relative error rise that still counts as "as good".
+        max_width: widest interval (fraction of the range) that still counts as determined.
+        on_eval: optional callback ``(name, value, error)`` after each evaluation (progress).
+    """
+    space = objective.space
+    th = np.asarray(theta_hat, float)
+    u_hat = space.to_unit(th)
+    e_hat = float(objective.evaluate(th).score)
+    out = []
+    for d, name in enumerate(space.names):
+        grid = np.unique(np.concatenate([np.linspace(0.0, 1.0, int(points)), [float(np.clip(u_hat[d], 0, 1))]]))
+        errs = np.empty(grid.size)
+        for k, ud in enumerate(grid):
+            if abs(ud - u_hat[d]) < 1e-12:
+                errs[k] = e_hat
+                continue
+            uu = u_hat.copy()
+            uu[d] = ud
+            errs[k] = float(objective.evaluate(space.from_unit(uu)).score)
+            if on_eval is not None:
+                on_eval(name, float(space.from_unit(uu)[d]), errs[k])
+        vals = np.array([space.from_unit(np.where(np.arange(space.dim) == d, g, u_hat))[d] for g in grid])
+        e_use = np.where(errs >= FAILED_SCORE, np.inf, errs)
+        lo, hi = indifference_interval(grid, e_use, float(u_hat[d]), e_hat, tol)
+        vlo = float(space.from_unit(np.where(np.arange(space.dim) == d, lo, u_hat))[d])
+        vhi = float(space.from_unit(np.where(np.arange(space.dim) == d, hi, u_hat))[d])
+        out.append(Profile(name, grid, vals, errs, float(u_hat[d]), e_hat, (lo, hi), (vlo, vhi), hi - lo,
+                           (hi - lo) <= max_width, float(grid[int(np.argmin(e_use))])))
+    return out
