@@ -1,0 +1,130 @@
+"""The cloth study's later stages through their CLIs on tiny twin and skirt footage.
+
+A twin reality (the estimator's simulator on a finer mesh, known parameters) is filmed for two
+fitted trials and a held-out one; per-trial fits, the cross-trial selection, the error profiles
+and the twin score run as stages, then CMA-ES and joint fits and the method comparison. Skirts of
+two MuJoCo fabrics are filmed and dressed with two parameter sets; the stiff set wins the stiff skirt.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+FAST = ["log.rerun=false", "log.progress=false"]
+MODEL = ["cloth.model.resolution=7", "cloth.model.settle_s=0.4", "cloth.model.frame_stride=2",
+         "cloth.fit.estimate=[stretch,drag_quad]", "cloth.fit.grid_params=[stretch]", "cloth.fit.grid_levels=3",
+         "cloth.fit.budget=4", "cloth.fit.evals_per_T=2", "cloth.fit.n_candidates=2", "cloth.profile.points=3"]
+
+
+def _run(mod: str, *args: str) -> str:
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    p = subprocess.run([sys.executable, "-m", mod, *args, *FAST], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=900)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    return p.stdout + p.stderr
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    res = tmp_path_factory.mktemp("cloth_study")
+    cal = res / "calibration" / "cloth"
+    _run("vidsim.cli.calibrate", "camera=cloth", "projector=cloth", "calibrate=cloth", "cloth.calibration.n_views=6",
+         "cloth.calibration.n_projector_views=6", f"paths.results={res}", f"paths.out={cal}")
+    common = [f"paths.results={res}", f"paths.calibration={cal / 'calibration.yaml'}", "cloth.reality.settle_s=0.4"]
+    for trial in ("exp1", "exp2", "robot"):
+        _run("vidsim.cli.cloth_reality", *common, f"paths.out={res / 'footage' / f'cloth_twin_{trial}'}",
+             "cloth.reality.kind=twin", f"cloth.reality.motion={trial}", "cloth.reality.n_frames=14",
+             "cloth.reality.twin_resolution=9")
+    for fab in ("linen", "knit"):
+        _run("vidsim.cli.cloth_reality", *common, f"paths.out={res / 'footage' / f'skirt_{fab}'}",
+             f"cloth.reality.fabric={fab}", "cloth.reality.object=skirt", "cloth.skirt.n_frames=10",
+             "cloth.skirt.rings=5", "cloth.skirt.around=14")
+    return res
+
+
+def test_twin_select_profile_score_and_method_comparison(study):
+    res = study
+    fp = {t: res / "footage" / f"cloth_twin_{t}" for t in ("exp1", "exp2", "robot")}
+    base = [f"paths.results={res}", *MODEL]
+    for meth in ("anneal", "cmaes"):
+        for t in ("exp1", "exp2"):
+            _run("vidsim.cli.cloth_fit", *base, f"paths.footage={fp[t]}", f"cloth.fit.method={meth}",
+                 f"paths.out={res / 'cloth' / ('fit' if meth == 'anneal' else 'fit_cmaes') / f'twin_{t}'}")
+        sel = res / "cloth" / ("select" if meth == "anneal" else "select_cmaes") / "twin"
+        d = "fit" if meth == "anneal" else "fit_cmaes"
+        _run("vidsim.cli.cloth_select", *base, f"paths.out={sel}",
+             f"cloth.select.fits=[{res / 'cloth' / d / 'twin_exp1' / 'fit.yaml'},{res / 'cloth' / d / 'twin_exp2' / 'fit.yaml'}]",
+             f"cloth.select.footage=[{fp['exp1']},{fp['exp2']}]")
+    joint = res / "cloth" / "fit_joint" / "twin"
+    out = _run("vidsim.cli.cloth_fit", *base, f"cloth.fit.footage=[{fp['exp1']},{fp['exp2']}]", f"paths.out={joint}")
+    assert "cloth_twin_exp1+cloth_twin_exp2" in out
+    jfit = yaml.safe_load((joint / "fit.yaml").read_text())
+    assert len(jfit["per_trial"]) == 2 and abs(sum(jfit["per_trial"]) - jfit["score"]) < 1e-6 * jfit["score"]
+    params = res / "cloth" / "select" / "twin" / "params.yaml"
+    prof = res / "cloth" / "profile" / "twin"
+    _run("vidsim.cli.cloth_profile", *base, f"paths.out={prof}", f"cloth.profile.params={params}",
+         f"cloth.profile.footage=[{fp['exp1']},{fp['exp2']}]")
+    pdoc = yaml.safe_load((prof / "profile.yaml").read_text())
+    assert set(pdoc["profiles"]) == {"stretch", "drag_quad"}
+    for p in pdoc["profiles"].values():
+        lo, hi = p["interval"]
+        assert lo <= p["estimate"] <= hi and 0 <= p["width_fraction"] <= 1
+    score = res / "cloth" / "twin" / "twin"
+    _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={score}", f"cloth.twin.params={params}",
+         f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}")
+    sdoc = yaml.safe_load((score / "score.yaml").read_text())
+    truth = yaml.safe_load((res / "footage" / "cloth_twin_robot.truth.yaml").read_text())["params"]
+    st = sdoc["parameters"]["stretch"]
+    assert st["truth"] == truth["stretch"] and st["estimated"] and not sdoc["parameters"]["bend"]["estimated"]
+    assert abs(st["relative_error"] - abs(st["estimate"] - st["truth"]) / st["truth"]) < 1e-9
+    # the selected set explains the held-out motion about as well as the truth does (within 2x at this tiny budget)
+    assert 0 < sdoc["heldout"]["ratio"] < 2.0, sdoc["heldout"]
+    cmp_ = res / "cloth" / "compare"
+    tr = lambda d: ",".join(str(res / "cloth" / d / f"twin_{t}" / "trace.csv") for t in ("exp1", "exp2"))  # noqa: E731
+    _run("vidsim.cli.cloth_compare", *base, f"paths.out={cmp_}", "cloth.compare.fabrics=[twin]",
+         f"cloth.compare.heldout=[{fp['robot']}]", f"cloth.compare.anneal=[{params}]",
+         f"cloth.compare.cmaes=[{res / 'cloth' / 'select_cmaes' / 'twin' / 'params.yaml'}]",
+         f"cloth.compare.joint=[{joint / 'fit.yaml'}]", f"cloth.compare.anneal_traces=[{tr('fit')}]",
+         f"cloth.compare.cmaes_traces=[{tr('fit_cmaes')}]", f"cloth.compare.joint_traces=[{joint / 'trace.csv'}]")
+    cdoc = yaml.safe_load((cmp_ / "compare.yaml").read_text())
+    # equal budgets in trial simulations: 2 trials x (grid 3 + 4) per method
+    assert cdoc["trial_simulations"] == {"anneal": [14], "cmaes": [14], "joint": [14]}
+    assert cdoc["best_on_heldout"]["twin"] in ("anneal", "joint", "cmaes")
+    assert (cmp_ / "curves.png").stat().st_size > 0 and (cmp_ / "heldout.png").stat().st_size > 0
+
+
+def test_skirt_matrix_prefers_the_matching_fabric(study):
+    res = study
+    sel = res / "sel"
+    sel.mkdir(exist_ok=True)
+    # hand-set parameter sets near each fabric's character (stiff heavy linen vs stretchy knit)
+    sets = {"linen": {"bend": 4e-5, "stretch": 3000.0, "shear": 400.0, "density": 0.2},
+            "knit": {"bend": 3e-6, "stretch": 25.0, "shear": 5.0, "density": 0.25}}
+    files = []
+    for fab, kw in sets.items():
+        p = {"bend_damping": 3e-8, "stretch_damping": 3e-3, "shear_damping": 3e-3, "drag_linear": 1.0,
+             "drag_quad": 1.5, "drag_degrade": 0.5, **kw}
+        (sel / f"{fab}.yaml").write_text(yaml.safe_dump({"params": p}))
+        files.append(str(sel / f"{fab}.yaml"))
+    out = res / "cloth" / "skirt"
+    _run("vidsim.cli.cloth_skirt", f"paths.results={res}", f"paths.out={out}", "cloth.skirt.fabrics=[linen,knit]",
+         f"cloth.skirt.params=[{','.join(files)}]",
+         f"cloth.skirt.footage=[{res / 'footage' / 'skirt_linen'},{res / 'footage' / 'skirt_knit'}]",
+         "cloth.skirt.model_rings=4", "cloth.skirt.model_around=12", "cloth.model.settle_s=0.4", "cloth.skirt.fps=30")
+    doc = yaml.safe_load((out / "skirt.yaml").read_text())
+    E = doc["matrix"]
+    # the stiff set explains the stiff skirt far better than the stretchy one does (measured 81 vs 332); the
+    # knit column is not asserted: a 4 x 12 model skirt cannot fold the way the soft MuJoCo knit does
+    assert E[0][0] < 0.5 * E[1][0], E
+    assert doc["wins_per_footage"]["linen"] == 1 and doc["of"] == 2
+    for fab in ("linen", "knit"):
+        assert (out / f"side_by_side_{fab}.mp4").stat().st_size > 1000
+    meta = yaml.safe_load((res / "footage" / "skirt_knit" / "meta.yaml").read_text())
+    assert meta["object"]["kind"] == "skirt" and "corner_paths" not in meta and "fabric" not in str(meta)
