@@ -83,7 +83,7 @@ def run(cfg: DictConfig) -> None:
             for k, e in zip(idx, d["time_errors_s"]):
                 lg.set_frame(int(k))
                 lg.scalar(f"metric/{name}/fitted_time_error_ms", 1e3 * float(e))
-                lg.scalar(f"metric/timestamp_departure_ms", 1e3 * float(dev[list(idx).index(k)] - dev.mean()))
+                lg.scalar("metric/timestamp_departure_ms", 1e3 * float(dev[list(idx).index(k)] - dev.mean()))
             lg.text(f"gap/{name}/verdict", d["verdict"])
     prog.update(note="written")
     for name, d in res.items():

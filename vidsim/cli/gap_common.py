@@ -23,7 +23,8 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "") -> None:
     ax[0].plot(fr, d.gap_per_frame, "k.-", label="base model (refit on training frames)")
     ax[0].plot(fr[d.test], d.gap_per_frame[d.test], "ko", mfc="none", ms=8, label="held-out frames")
     ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label="noise floor (free pose per frame)")
-    for name in d.named[:2]:
+    for i in range(min(len(d.named), 2)):
+        name = "+".join(d.named[: i + 1])
         g = np.asarray(d.refits[name]["gap_per_frame_after_px"])
         ax[0].plot(fr, g, ".-", label=f"+ {name}")
     ax[0].set_xlabel("frame")

@@ -31,10 +31,12 @@ class GapDiagnoseConfig:
         ramp: soft-silhouette anti-aliasing ramp, pixels at that scale.
         roi_px: region of interest around the silhouettes, pixels at that scale.
         top_k: screened candidates refitted; max_nfev: residual evaluations per refit.
-        min_closure: held-out fraction of the excess over the noise floor an effect must close.
+        min_closure: held-out fraction of the excess over the noise floor an effect must close
+            (of what the effects named before it leave).
         min_excess: the held-out gap must exceed the floor by this fraction for anything to be named.
         jitter_min_white: share of the fitted time errors' variance a cubic drift must leave.
-        pairs: refit the two best supported effects together (combined cases).
+        pairs: forward selection may name a second effect: while a gap beyond the floor remains
+            after the first, screen again with it in the model and refit the best of the rest with it.
     """
 
     candidates: list[str] = field(default_factory=_all_effects)
@@ -45,7 +47,7 @@ class GapDiagnoseConfig:
     roi_px: int = 12
     top_k: int = 3
     max_nfev: int = 15
-    min_closure: float = 0.3
+    min_closure: float = 0.5
     min_excess: float = 0.15
     jitter_min_white: float = 0.5
     pairs: bool = True

@@ -7,9 +7,14 @@ small block of parameters; with all blocks at zero the extended model reproduces
 Dynamics (centre-of-mass acceleration added to ``g``; rotation stays torque free)::
 
     linear_drag     c1  (1/s)      a += -c1 V
-    quadratic_drag  c2  (1/m)      a += -c2 |V| V
+    quadratic_drag  c2  (kg/m^3)   air pressure on the faces of each box of the known shape at the
+                                   box's own velocity u_b = R^T V + w x r_b (body axes):
+                                   F_b = -c2 sum_i A_bi |u_bi| u_bi e_i (A_bi: face area normal to
+                                   body axis i), force sum_b F_b / m and torque sum_b r_b x F_b
+                                   together (c2 = rho C / 2; drag and the lift of oblique faces)
     wind            a_w (3, m/s^2) a += a_w         (steady uniform push, camera axes)
-    magnus          s   (-)        a += s (W x V)   (W: spin in world axes, rad/s)
+    magnus          s   (-)        a += s (W x V)   (W: spin in world axes, rad/s; s >= 0: the lift
+                                   of a spinning body is toward W x V)
     angular_drag    k   (1/s)      w' += -k w       (spin decays)
     drag_torque     u   (3, -)     torque of quadratic drag acting at a centre of pressure r_p
                                    (body axes) off the centre of mass: u = c2 r_p,
@@ -62,6 +67,9 @@ class EffectSpec:
             step is 0.25 of it), in the effect's units.
         units: units of the parameters; lower: lower bound (None: unbounded).
         alias: effects this one cannot be told apart from in a single free flight.
+        disp_power: the image displacement grows as parameter^disp_power near zero (1: linear;
+            blur's extent grows as the square root of its parameter, the exposure squared, and
+            keeps its probe step in :meth:`RigidGapModel.fd_steps`).
     """
 
     name: str
@@ -71,19 +79,20 @@ class EffectSpec:
     units: str
     lower: float | None = None
     alias: tuple[str, ...] = ()
+    disp_power: float = 1.0
 
 
 RIGID_EFFECTS: dict[str, EffectSpec] = {e.name: e for e in (
     EffectSpec("linear_drag", 1, "dynamics", 0.05, "1/s", 0.0),
-    EffectSpec("quadratic_drag", 1, "dynamics", 0.02, "1/m", 0.0),
+    EffectSpec("quadratic_drag", 1, "dynamics", 0.2, "kg/m^3", 0.0),
     EffectSpec("wind", 3, "dynamics", 0.05, "m/s^2"),
-    EffectSpec("magnus", 1, "dynamics", 0.002, "-"),
+    EffectSpec("magnus", 1, "dynamics", 0.002, "-", 0.0),
     EffectSpec("angular_drag", 1, "dynamics", 0.05, "1/s", 0.0),
     EffectSpec("drag_torque", 3, "dynamics", 2e-4, "-"),
     EffectSpec("com_offset", 3, "dynamics", 0.004, "m"),
     EffectSpec("gravity_scale", 1, "dynamics", 0.01, "-", alias=("time_rate",)),
     EffectSpec("lens_k1", 1, "imaging", 0.01, "-"),
-    EffectSpec("motion_blur", 1, "imaging", 1e-4, "s^2", 0.0),
+    EffectSpec("motion_blur", 1, "imaging", 1e-4, "s^2", 0.0, disp_power=0.5),
     EffectSpec("rolling_shutter", 1, "timing", 0.004, "s"),
     EffectSpec("time_offset", 1, "timing", 0.002, "s"),
     EffectSpec("time_rate", 1, "timing", 0.005, "-", alias=("gravity_scale",)),
@@ -102,7 +111,7 @@ def effect_size(name: str, n_frames: int) -> int:
 @njit(cache=True)
 def _rhs_ext(q: np.ndarray, g: np.ndarray, I: np.ndarray, Iinv: np.ndarray, c1: float, c2: float,
              aw: np.ndarray, sm: float, kw: float,
-             u: np.ndarray, mass: float) -> np.ndarray:
+             u: np.ndarray, mass: float, boxc: np.ndarray, boxa: np.ndarray) -> np.ndarray:
     dq = np.zeros(13)
     Q = q[3:7]
     w = q[10:13]
@@ -114,14 +123,26 @@ def _rhs_ext(q: np.ndarray, g: np.ndarray, I: np.ndarray, Iinv: np.ndarray, c1: 
     dq[5] = 0.5 * (Q[0] * w[1] - Q[1] * w[2] + Q[3] * w[0])
     dq[6] = 0.5 * (Q[0] * w[2] + Q[1] * w[1] - Q[2] * w[0])
     sp = np.sqrt(V[0] ** 2 + V[1] ** 2 + V[2] ** 2)
-    a = g + aw - c1 * V - c2 * sp * V
-    if sm != 0.0:
-        R = quat_to_rot(Q)
-        W = R @ w
-        a = a + sm * np.cross(W, V)
-    dq[7:10] = a
+    a = g + aw - c1 * V
     Iw = I @ w
     tau = np.cross(Iw, w)
+    if sm != 0.0 or c2 != 0.0:
+        R = quat_to_rot(Q)
+        if sm != 0.0:
+            a = a + sm * np.cross(R @ w, V)
+        if c2 != 0.0:
+            # face pressure on each box at its own velocity: body-axes velocity of box b's centre
+            # u = R^T V + w x r_b; the faces facing the flow along axis i push back with
+            # c2 A_bi |u_i| u_i (A_bi: the box's face area normal to i); force and torque together
+            Vb = R.T @ V
+            Fb = np.zeros(3)
+            for b in range(boxc.shape[0]):
+                ub = Vb + np.cross(w, boxc[b])
+                fb = -c2 * boxa[b] * np.abs(ub) * ub
+                Fb += fb
+                tau = tau + np.cross(boxc[b], fb)
+            a = a + (R @ Fb) / mass
+    dq[7:10] = a
     if u[0] != 0.0 or u[1] != 0.0 or u[2] != 0.0:
         # V in body axes: R^T V
         n = np.sqrt(Q[0] ** 2 + Q[1] ** 2 + Q[2] ** 2 + Q[3] ** 2)
@@ -138,7 +159,7 @@ def _rhs_ext(q: np.ndarray, g: np.ndarray, I: np.ndarray, Iinv: np.ndarray, c1: 
 @njit(cache=True)
 def _integrate_ext(q0: np.ndarray, t0: float, times: np.ndarray, hmax: float, g: np.ndarray, I: np.ndarray,
                    Iinv: np.ndarray, c1: float, c2: float, aw: np.ndarray, sm: float, kw: float,
-                   u: np.ndarray, mass: float) -> tuple[np.ndarray, bool]:
+                   u: np.ndarray, mass: float, boxc: np.ndarray, boxa: np.ndarray) -> tuple[np.ndarray, bool]:
     T = times.shape[0]
     order = np.argsort(times)
     states = np.zeros((T, 13))
@@ -150,10 +171,10 @@ def _integrate_ext(q0: np.ndarray, t0: float, times: np.ndarray, hmax: float, g:
         if n > 0:
             h = span / n
             for _ in range(n):
-                k1 = _rhs_ext(q, g, I, Iinv, c1, c2, aw, sm, kw, u, mass)
-                k2 = _rhs_ext(q + 0.5 * h * k1, g, I, Iinv, c1, c2, aw, sm, kw, u, mass)
-                k3 = _rhs_ext(q + 0.5 * h * k2, g, I, Iinv, c1, c2, aw, sm, kw, u, mass)
-                k4 = _rhs_ext(q + h * k3, g, I, Iinv, c1, c2, aw, sm, kw, u, mass)
+                k1 = _rhs_ext(q, g, I, Iinv, c1, c2, aw, sm, kw, u, mass, boxc, boxa)
+                k2 = _rhs_ext(q + 0.5 * h * k1, g, I, Iinv, c1, c2, aw, sm, kw, u, mass, boxc, boxa)
+                k3 = _rhs_ext(q + 0.5 * h * k2, g, I, Iinv, c1, c2, aw, sm, kw, u, mass, boxc, boxa)
+                k4 = _rhs_ext(q + h * k3, g, I, Iinv, c1, c2, aw, sm, kw, u, mass, boxc, boxa)
                 q = q + h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
             t = times[idx]
         if not np.all(np.isfinite(q)) or np.sqrt(q[10] ** 2 + q[11] ** 2 + q[12] ** 2) > 500.0:
@@ -202,6 +223,11 @@ class RigidGapModel:
         self.n_params = k
         self.corners = body.box_vertices()
         self.Iinv = np.linalg.inv(body.inertia)
+        self.box_centers = np.ascontiguousarray(body.centers, float)
+        h = body.half_sizes
+        # (B, 3) face areas of each box normal to its body axes x, y, z, m^2
+        self.face_areas = np.ascontiguousarray(4.0 * np.stack([h[:, 1] * h[:, 2], h[:, 0] * h[:, 2],
+                                                               h[:, 0] * h[:, 1]], 1))
 
     # ------------------------------------------------------------------ parameters
     def get(self, theta: np.ndarray, name: str) -> np.ndarray:
@@ -260,7 +286,8 @@ class RigidGapModel:
                                     np.ascontiguousarray(self.get(theta, "wind")),
                                     float(self.get(theta, "magnus")[0]),
                                     float(self.get(theta, "angular_drag")[0]),
-                                    np.ascontiguousarray(self.get(theta, "drag_torque")), self.body.mass)
+                                    np.ascontiguousarray(self.get(theta, "drag_torque")), self.body.mass,
+                                    self.box_centers, self.face_areas)
         if not ok:
             return np.zeros(shp + (3,)), np.zeros(shp + (4,)), False
         X = states[:, 0:3].copy()
@@ -271,6 +298,95 @@ class RigidGapModel:
         return X.reshape(shp + (3,)), Q.reshape(shp + (4,)), True
 
     # ------------------------------------------------------------------ images
+    def _camera(self, theta: np.ndarray) -> PinholeCamera:
+        """The camera at this model's scale with the candidate lens distortion added."""
+        k1 = float(self.get(theta, "lens_k1")[0])
+        cam = self.cam
+        if k1 != 0.0:
+            dist = np.array(cam.dist, float).copy()
+            dist[0] += k1
+            cam = PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, dist)
+        return cam
+
+    def _sub_times(self, theta: np.ndarray, idx: np.ndarray, n_exp: int, n_rs: int) -> np.ndarray:
+        """(F, n_exp, n_rs) capture times of the exposure x rolling-shutter sub-samples, seconds."""
+        tc = self.capture_times(theta)[idx]
+        b = max(float(self.get(theta, "motion_blur")[0]), 0.0)
+        rs = float(self.get(theta, "rolling_shutter")[0])
+        exp_off = np.linspace(-0.5, 0.5, n_exp) * np.sqrt(b) if n_exp > 1 else np.zeros(1)
+        rs_off = (np.arange(n_rs) + 0.5) / n_rs * rs if n_rs > 1 else np.zeros(1)
+        return tc[:, None, None] + exp_off[None, :, None] + rs_off[None, None, :]
+
+    def image_points(self, theta: np.ndarray) -> np.ndarray:
+        """(T, 4, n_corners, 2) image positions of the box corners at this model's scale, pixels.
+
+        The four sub-samples per frame are the two ends of the exposure and the first and last
+        rolling-shutter row times, so that every candidate (motion, timing, lens, blur extent,
+        shutter skew) moves these points; NaN when the simulation diverged.
+        """
+        theta = np.asarray(theta, float)
+        idx = np.arange(len(self.times))
+        b = max(float(self.get(theta, "motion_blur")[0]), 0.0)
+        rs = float(self.get(theta, "rolling_shutter")[0])
+        tc = self.capture_times(theta)
+        sub = (tc[:, None] + np.array([-0.5, 0.5, -0.5, 0.5])[None, :] * np.sqrt(b)
+               + np.array([0.0, 0.0, 1.0, 1.0])[None, :] * rs)
+        X, Q, ok = self.poses(theta, sub)
+        C = self.corners.reshape(-1, 3)
+        if not ok:
+            return np.full((len(idx), 4, len(C), 2), np.nan)
+        cam = self._camera(theta)
+        R = np.stack([quat_to_rot(q) for q in Q.reshape(-1, 4)])
+        P = np.einsum("nij,cj->nci", R, C) + X.reshape(-1, 1, 3)
+        uv = cam.project(P.reshape(-1, 3))
+        return uv.reshape(len(idx), 4, len(C), 2)
+
+    def fd_steps(self, theta: np.ndarray, target_px: float = 1e-4, probe: float = 0.25) -> np.ndarray:
+        """(n_params,) finite-difference steps that move the body's image by about ``target_px``.
+
+        The soft silhouette is linear in an edge's position only within its anti-aliasing ramp
+        (``ramp`` pixels) and its derivative jumps at the ramp's ends, so a derivative by
+        differences is accurate only for steps that move the image by a small fraction of it
+        (see :meth:`vidsim.gap.rigid_diagnose.Problem.jacobian`). Each parameter is probed by
+        ``probe`` x its typical scale, the largest corner displacement over all frames is
+        measured (poses and projection only, no rendering) and the step is shrunk to give
+        ``target_px`` (never enlarged); per-frame time errors get one step per frame. Blur
+        (``disp_power`` != 1: its extent grows as the square root of its parameter and the
+        silhouette responds to it at second order, only where the ramp bends) keeps the probe
+        step: a step of a tiny extent would difference nothing but the ramp's ends.
+        """
+        theta = np.asarray(theta, float)
+        base = probe * self.x_scale()
+        steps = base.copy()
+        P0 = self.image_points(theta)
+        if not np.all(np.isfinite(P0)):
+            return steps
+
+        def disp(tp: np.ndarray) -> np.ndarray:
+            d = np.linalg.norm(self.image_points(tp) - P0, axis=-1)
+            return np.where(np.isfinite(d), d, np.inf).reshape(len(self.times), -1).max(1)
+
+        def shrink(h: np.ndarray, d: np.ndarray) -> np.ndarray:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = np.where(d > target_px, target_px / d, 1.0)
+            return h * np.where(np.isfinite(f), f, 1.0)
+
+        jit = self.slices.get("time_jitter")
+        linear = np.ones(self.n_params, bool)
+        for name, sl in self.slices.items():
+            linear[sl] = RIGID_EFFECTS[name].disp_power == 1.0
+        for j in range(self.n_params):
+            if (jit is not None and jit.start <= j < jit.stop) or not linear[j]:
+                continue
+            tp = theta.copy()
+            tp[j] += base[j]
+            steps[j] = float(shrink(base[j:j + 1], np.array([disp(tp).max()]))[0])
+        if jit is not None:
+            tp = theta.copy()
+            tp[jit] += base[jit]
+            steps[jit] = shrink(base[jit], disp(tp))
+        return steps
+
     def render(self, theta: np.ndarray, frames: np.ndarray | None = None, dX: np.ndarray | None = None
                ) -> tuple[np.ndarray, bool]:
         """Soft silhouettes of the model at this model's scale.
@@ -287,19 +403,10 @@ class RigidGapModel:
         """
         theta = np.asarray(theta, float)
         idx = np.arange(len(self.times)) if frames is None else np.asarray(frames, int)
-        tc = self.capture_times(theta)[idx]
-        k1 = float(self.get(theta, "lens_k1")[0])
-        cam = self.cam
-        if k1 != 0.0:
-            dist = np.array(cam.dist, float).copy()
-            dist[0] += k1
-            cam = PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, dist)
-        b = max(float(self.get(theta, "motion_blur")[0]), 0.0)
-        rs = float(self.get(theta, "rolling_shutter")[0])
-        exp_off = np.linspace(-0.5, 0.5, 5) * np.sqrt(b) if b > 0 else np.zeros(1)
-        n_rs = 6 if rs != 0.0 else 1
-        rs_off = (np.arange(n_rs) + 0.5) / n_rs * rs if n_rs > 1 else np.zeros(1)
-        sub = tc[:, None, None] + exp_off[None, :, None] + rs_off[None, None, :]
+        cam = self._camera(theta)
+        n_exp = 5 if float(self.get(theta, "motion_blur")[0]) > 0 else 1
+        n_rs = 6 if float(self.get(theta, "rolling_shutter")[0]) != 0.0 else 1
+        sub = self._sub_times(theta, idx, n_exp, n_rs)
         X, Q, ok = self.poses(theta, sub)
         if dX is not None:
             X = X + np.asarray(dX, float)[:, None, None, :]
@@ -307,7 +414,7 @@ class RigidGapModel:
         if not ok or np.any((X.reshape(-1, 3) @ cam.R.T + cam.t)[:, 2] < 0.05):
             return np.zeros((len(idx), H, W)), False
         out = np.zeros((len(idx), H, W))
-        for e in range(len(exp_off)):
+        for e in range(n_exp):
             if n_rs == 1:
                 out += render_coverage(X[:, e, 0], Q[:, e, 0], self.corners, cam, self.ramp)
                 continue
@@ -317,4 +424,4 @@ class RigidGapModel:
                 r1 = int(round((j + 1) * H / n_rs))
                 img[:, r0:r1] = render_coverage(X[:, e, j], Q[:, e, j], self.corners, cam, self.ramp)[:, r0:r1]
             out += img
-        return out / len(exp_off), True
+        return out / n_exp, True

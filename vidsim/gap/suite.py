@@ -178,10 +178,15 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
     truths = true_strengths(truth, body, nominal_times)
     rec = {}
     for lbl in labels:
-        r = diag.refits.get(lbl)
+        # the refit that added this effect: the named model up to it, else its single refit
+        key = "+".join(named[: named.index(lbl) + 1]) if lbl in named else lbl
+        r = diag.refits.get(key)
         if r is None:
             continue
-        out.setdefault("closure", {})[lbl] = float(r["heldout_closure"] if lbl != "time_jitter" else r["train_closure"])
+        clos = r.get("closure_of_remaining")
+        if clos is None:
+            clos = r["heldout_closure"] if lbl != "time_jitter" else r["train_closure"]
+        out.setdefault("closure", {})[lbl] = float(clos)
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
         if lbl in truths:
             p = r["params"][lbl]

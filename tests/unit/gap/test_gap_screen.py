@@ -77,3 +77,13 @@ def test_bad_candidate_and_short_clip_are_clear_errors():
         diagnose_rigid(masks, times, cam, body, {k: v for k, v in fit.items() if k != "tilt"}, CFG)
     with pytest.raises(GapError, match="visible in only"):
         diagnose_rigid(masks[:5], times[:5], cam, body, fit, CFG)
+
+
+def test_two_planted_effects_are_both_named_by_forward_selection():
+    masks, times, cam, body, fit = _throw({"com_offset": [0.015, 0.0, 0.0], "lens_k1": [-0.25]})
+    d = diagnose_rigid(masks, times, cam, body, fit, CFG)
+    assert sorted(d.named) == ["com_offset", "lens_k1"], d.verdict
+    pair = d.refits["+".join(d.named)]
+    # the second effect closes most of what the first left, on held-out frames
+    assert pair["supported"] and pair["closure_of_remaining"] >= 0.5
+    assert d.extra["conditional_screens"], "the second effect comes from a conditional screen"
