@@ -85,6 +85,8 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     # the edit's measured figures (issue 8 targets)
     assert ref["fraction_in_desired_sink"] >= 0.98
     assert ref["rendered_flow_epe_px"] <= 1.0
+    assert ref["patch_distance_ratio"] <= 1.5
+    assert ref["flicker_output"] <= ref["flicker_source"] or np.isnan(ref["flicker_source"])
     assert ref["frames"] == 16 and ref["iterations"] > 3
     import av
 
@@ -131,6 +133,8 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     assert r.returncode == 0, r.stderr[-2000:]
     table = (mout / "metrics.csv").read_text()
     assert "edit/second_boat,fraction of particles in desired sink,1.0000,>= 0.98,yes" in table
+    assert "edit/second_boat,patch-distance ratio," in table
+    assert 'edit/second_boat,"flicker in static regions, output (grey levels)"' in table
 
 
 def _bad(d: dict) -> dict:

@@ -15,7 +15,8 @@ Outputs (folder written under a temporary name, renamed at the end): ``edit.mp4`
 rendered frames), ``edit.gif`` (source | output, for the report), ``contact_sheet.png``,
 ``arrows.png`` (the video's mean field before, the edited field after, with sources, sinks,
 obstacles and particle exits), ``summary.json``/``summary.csv`` (sink fractions, rendered-flow
-EPE, patch-distance ratio, flicker, timings), ``field.npz``, ``fluid.rrd``.
+EPE, patch-distance and detail-contrast ratios, flicker in static regions and motion-compensated,
+timings), ``field.npz``, ``fluid.rrd``.
 """
 
 from __future__ import annotations
@@ -232,7 +233,9 @@ def run(cfg: DictConfig) -> None:
         "rendered_flow_epe_px": float(figs["rendered_flow_epe_px"]),
         "edited_speed_mean_px": float(figs["edited_speed_mean_px"]),
         "patch_distance_ratio": float(figs["patch_distance"]["ratio"]),
+        "detail_ratio": float(figs["detail_ratio"]),
         "flicker_output": float(figs["flicker_output"]), "flicker_source": float(figs["flicker_source"]),
+        "flicker_mc_output": float(figs["flicker_mc_output"]), "flicker_mc_source": float(figs["flicker_mc_source"]),
         "static_fraction_output": float(figs["static_fraction_output"]),
         "static_fraction_source": float(figs["static_fraction_source"]),
         "frames": int(n_frames), "width": int(W), "height": int(H),

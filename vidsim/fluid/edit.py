@@ -135,7 +135,12 @@ class OptimizerSettings:
 class RenderSettings:
     """Texture-transfer settings (seed 5.4): patch side and overlap in output pixels, K nearest
     velocity patches, output frames, ``mode`` "advected" (patches move with the edited field)
-    or "fixed" (each output patch keeps its source patch and plays the source in time)."""
+    or "fixed" (each output patch keeps its source patch and plays the source in time);
+    ``velocity_noise`` (px/frame): velocity-patch differences below it are ties, and K more
+    candidates are drawn at random within it (0: K nearest only); ``usage``: weight of
+    uniform use of the source (0: off); ``blend``: "linear" feathering or "variance"
+    (contrast-preserving, for stochastic textures such as PIV particles); ``resample``:
+    "cubic" (Catmull-Rom) or "linear" sampling of sub-pixel source positions."""
 
     patch: int = 12
     overlap: int = 4
@@ -143,6 +148,10 @@ class RenderSettings:
     frames: int = 120
     mode: str = "advected"
     seed: int = 0
+    velocity_noise: float = 0.03
+    usage: float = 1.0
+    blend: str = "linear"
+    resample: str = "cubic"
 
 
 @dataclass(frozen=True)
@@ -302,12 +311,18 @@ class EditSpec:
         ds = d.get("downsample", 1)
         if not isinstance(ds, int) or ds < 1:
             raise EditSpecError(f"downsample={ds!r}, expected an integer >= 1")
-        rd = _keys(d.get("render", {}) or {}, "render", {"patch", "overlap", "k", "frames", "mode", "seed"})
+        rd = dict(_keys(d.get("render", {}) or {}, "render", {"patch", "overlap", "k", "frames", "mode", "seed",
+                                                               "velocity_noise", "usage", "blend", "resample"}))
         for key, lo in (("patch", 4), ("overlap", 0), ("k", 1), ("frames", 1), ("seed", 0)):
             if key in rd and (not isinstance(rd[key], int) or rd[key] < lo):
                 raise EditSpecError(f"render.{key}={rd[key]!r}, expected an integer >= {lo}")
-        if "mode" in rd and rd["mode"] not in ("advected", "fixed"):
-            raise EditSpecError(f"render.mode={rd['mode']!r}, expected 'advected' or 'fixed'")
+        for key in ("velocity_noise", "usage"):
+            if key in rd:
+                rd[key] = _pos(rd[key], f"render.{key}", 0.0, 10.0)
+        for key, allowed in (("mode", ("advected", "fixed")), ("blend", ("linear", "variance")),
+                             ("resample", ("cubic", "linear"))):
+            if key in rd and rd[key] not in allowed:
+                raise EditSpecError(f"render.{key}={rd[key]!r}, expected one of {list(allowed)}")
         rs = RenderSettings(**rd)
         if rs.overlap * 2 >= rs.patch:
             raise EditSpecError(f"render.overlap={rs.overlap}, expected < patch/2 = {rs.patch / 2}")

@@ -6,6 +6,9 @@
   relative to how close the source's own patches are to each other (taken from disjoint
   source frames); 1 means "as close as the source is to itself".
 * :func:`flicker`: mean absolute frame-to-frame change (grey levels) inside a static mask.
+* :func:`compensated_flicker`: the same along the sequence's own optical flow, over the
+  whole frame.
+* :func:`detail_contrast`: fine-detail contrast (wash-out shows as output < source).
 """
 
 from __future__ import annotations
@@ -24,11 +27,11 @@ def rendered_flow_epe(frames: np.ndarray, edited_field: np.ndarray, border: int 
 
 
 def rendered_flow_epe_frames(frames: np.ndarray, edited_field: np.ndarray, border: int = 8,
-                             mask: np.ndarray | None = None) -> np.ndarray:
+                             mask: np.ndarray | None = None, flow: np.ndarray | None = None) -> np.ndarray:
     """Per frame pair: ``(T-1,)`` average endpoint error (px/frame) of the rendered frames' flow
-    against the edited field (same mask in every pair, so their mean is
-    :func:`rendered_flow_epe`)."""
-    fl = estimate_flow(frames)
+    (estimated here unless ``flow`` gives it) against the edited field (same mask in every
+    pair, so their mean is :func:`rendered_flow_epe`)."""
+    fl = estimate_flow(frames) if flow is None else flow
     ef = np.broadcast_to(np.asarray(edited_field, np.float64)[-fl.shape[0]:] if np.ndim(edited_field) == 4
                          else edited_field, fl.shape)
     m = np.zeros(fl.shape[1:3], bool)
@@ -87,12 +90,50 @@ def patch_distance_ratio(out_frames: np.ndarray, src_frames: np.ndarray, patch: 
             "out_median": float(np.median(d_out)), "src_median": float(np.median(d_src))}
 
 
-def flicker(frames: np.ndarray, static: np.ndarray) -> float:
-    """Mean absolute change of grey level between consecutive frames inside ``static`` (H,W)."""
+MIN_STATIC_PX = 100
+
+
+def flicker(frames: np.ndarray, static: np.ndarray, min_px: int = 1) -> float:
+    """Mean absolute change of grey level (mean of R, G, B) between consecutive frames inside
+    ``static`` (H,W); NaN if the mask has fewer than ``min_px`` pixels (not measurable)."""
     g = frames.astype(np.float64).mean(-1)
     if not static.any():
         raise ValueError("static mask is empty: no static region to measure flicker in")
+    if static.sum() < min_px:
+        return float("nan")
     return float(np.abs(np.diff(g, axis=0))[:, static].mean())
+
+
+def detail_contrast(frames: np.ndarray) -> float:
+    """Fine-detail contrast (grey levels): the standard deviation of each frame's grey level
+    minus its Gaussian blur (sigma 2 px), averaged over frames. The output's over the source's
+    shows wash-out (< 1), which the patch-distance ratio cannot see: a blurred patch is close
+    to the source's smooth patches."""
+    import cv2
+
+    g = frames.astype(np.float32).mean(-1)
+    return float(np.mean([np.std(x - cv2.GaussianBlur(x, (0, 0), 2.0)) for x in g]))
+
+
+def compensated_flicker(frames: np.ndarray, flow: np.ndarray | None = None, border: int = 8) -> float:
+    """Motion-compensated flicker (grey levels): mean over consecutive frame pairs and pixels
+    (``border`` px from the edge excluded) of ``|I_n(x) - I_{n+1}(x + f_n(x))|``, ``f`` the
+    sequence's own optical flow (estimated here with :func:`estimate_flow` unless given),
+    ``I_{n+1}`` sampled bilinearly. The change a smooth motion does not explain: temporal
+    noise, popping and cross-fades, everywhere in the frame (in static regions it is
+    :func:`flicker`)."""
+    import cv2
+
+    fl = estimate_flow(frames) if flow is None else np.asarray(flow, np.float32)
+    g = frames.astype(np.float32).mean(-1)
+    h, w = g.shape[1:]
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float32)
+    res = []
+    for n in range(fl.shape[0]):
+        warped = cv2.remap(g[n + 1], xx + fl[n, ..., 0], yy + fl[n, ..., 1], cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE)
+        res.append(np.abs(g[n] - warped)[border:h - border, border:w - border].mean())
+    return float(np.mean(res))
 
 
 def static_mask(flow: np.ndarray, threshold: float = 0.1, erode: int = 2) -> np.ndarray:

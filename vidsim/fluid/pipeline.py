@@ -15,7 +15,8 @@ import numpy as np
 
 from vidsim.fluid.edit import EditSpec
 from vidsim.fluid.flow import FlowMethod, estimate_flow
-from vidsim.fluid.metrics import flicker, patch_distance_ratio, rendered_flow_epe_frames, static_mask
+from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, flicker, patch_distance_ratio,
+                                  rendered_flow_epe_frames, static_mask)
 from vidsim.fluid.optimize import EditResult, edit_field
 from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
 
@@ -67,8 +68,10 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     Returns:
         dict with ``frames`` (n,H',W',3) uint8, ``edited_field_px`` (H',W',2), ``edit``
         (:class:`EditResult`), ``source_flow`` and ``figures`` (flow-conservation fraction,
-        rendered-flow EPE in px/frame, patch-distance ratio, flicker of output and source in
-        grey levels, timings) and ``epe_frames`` (n-1,) the rendered-flow EPE per frame pair.
+        rendered-flow EPE in px/frame, patch-distance ratio, detail-contrast ratio, flicker of
+        output and source in grey levels in their static regions (NaN: fewer than
+        ``MIN_STATIC_PX`` static pixels) and motion-compensated over the whole frame, timings)
+        and ``epe_frames`` (n-1,) the rendered-flow EPE per frame pair.
     """
     n = spec.render.frames if n_frames is None else n_frames
     if flow is None:
@@ -85,15 +88,23 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
                                 match_flow=flow[:, :H, :W].mean(0), on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig}
-    epe_frames = rendered_flow_epe_frames(out, field_px, border=spec.render.patch)
+    src = src_frames[:, :H, :W]
+    out_flow = estimate_flow(out)
+    border = spec.render.patch
+    epe_frames = rendered_flow_epe_frames(out, field_px, border=border, flow=out_flow)
     figs["rendered_flow_epe_px"] = float(epe_frames.mean())
     figs["edited_speed_mean_px"] = float(np.linalg.norm(field_px, axis=-1).mean())
-    figs["patch_distance"] = patch_distance_ratio(out, src_frames[:, :H, :W], rng=rng)
+    figs["patch_distance"] = patch_distance_ratio(out, src, rng=rng)
+    figs["detail_ratio"] = detail_contrast(out) / max(detail_contrast(src), 1e-12)
+    # static regions: each sequence's own (edited field / time-median source flow < 0.1 px/frame)
     st_out = static_mask(field_px)
     st_src = static_mask(flow[:, :H, :W])
-    figs["flicker_output"] = flicker(out, st_out) if st_out.any() else float("nan")
-    figs["flicker_source"] = flicker(src_frames[:, :H, :W], st_src) if st_src.any() else float("nan")
+    figs["flicker_output"] = flicker(out, st_out, MIN_STATIC_PX) if st_out.any() else float("nan")
+    figs["flicker_source"] = flicker(src, st_src, MIN_STATIC_PX) if st_src.any() else float("nan")
     figs["static_fraction_output"] = float(st_out.mean())
     figs["static_fraction_source"] = float(st_src.mean())
+    # along each sequence's own (unsmoothed) optical flow, whole frame
+    figs["flicker_mc_output"] = compensated_flicker(out, out_flow, border)
+    figs["flicker_mc_source"] = compensated_flicker(src, estimate_flow(src), border)
     return {"frames": out, "edited_field_px": field_px, "edit": res, "source_flow": flow, "figures": figs,
             "epe_frames": epe_frames}

@@ -1,9 +1,14 @@
 """Texture-transfer rendering of an edited velocity field (seed 5.4, PATCHSELECT).
 
-Every output patch takes its colour from the source-video patch whose velocity
-neighbourhood matches (K nearest neighbours in a KD-tree of velocity-patch features), chosen
-among the K by data cost plus colour consistency with the already-filled output
-(neighbourhood consistency). Overlapping patches are blended with linear feathering.
+Every output patch takes its colour from a source-video patch whose velocity neighbourhood
+matches (:class:`PatchSelector`): candidates are the K nearest velocity patches (KD-tree of
+velocity-patch features) plus K drawn at random among all patches that match within the
+flow's accuracy; the velocity match keeps the ones as good as the best, and among those
+colour consistency with the already-filled output (neighbourhood consistency, in a form
+without L2's bias towards low-contrast patches) and uniform use of the source decide.
+Overlapping patches are blended by linear feathering or by a correlation-aware
+variance-preserving blend (:func:`_compose`); sub-pixel source positions are sampled
+bicubically.
 
 Sequence modes:
 
@@ -12,7 +17,7 @@ Sequence modes:
   advances, so the texture inside it moves like the edited field and keeps the source's own
   temporal texture dynamics. Holes opened by divergence are filled by new patches
   (PATCHSELECT against the current output, faded in); crowded cells and patches whose source
-  clip ends fade out.
+  clip ends fade out. Patches centred on an obstacle (``solid``) hold their source frame.
 * ``"fixed"``: each output patch keeps its source window and plays the source forward in time
   (motion then equals the source motion at the matched patch).
 
@@ -50,11 +55,36 @@ def _feather(u: float, p: int, o: int) -> float:
 
 
 @njit(cache=True)
-def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, acc, wsum, colour):
+def _catmull_rom(g: float, w: np.ndarray) -> None:
+    """Catmull-Rom (Keys a = -1/2) weights of the taps at -1, 0, 1, 2 for fraction ``g``."""
+    g2 = g * g
+    g3 = g2 * g
+    w[0] = 0.5 * (-g3 + 2.0 * g2 - g)
+    w[1] = 0.5 * (3.0 * g3 - 5.0 * g2 + 2.0)
+    w[2] = 0.5 * (-3.0 * g3 + 4.0 * g2 + g)
+    w[3] = 0.5 * (g3 - g2)
+
+
+# channels of the splat accumulator (per output pixel)
+_ACC, _MEAN, _W, _W2, _OFF, _OFF2 = slice(0, 3), slice(3, 6), 6, 7, slice(8, 11), 11
+_N_ACC = 12
+
+
+@njit(cache=True)
+def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, frame, accum, colour, cubic):
     """Accumulate patches: output top-left (cx, cy) float, source frame ts, source top-left
-    (sx, sy) float, opacity alpha; bilinear sampling of the source."""
+    (sx, sy) float, opacity alpha, at output frame ``frame``. ``accum`` (H, W, 12) sums per
+    output pixel: weight x colour, weight x the patch's mean colour, weight, squared weight,
+    weight x the patch's source offset (sx - cx, sy - cy, p (ts - frame)) and weight x its
+    squared norm (for :func:`_compose`). The source is sampled bicubically (Catmull-Rom) if
+    ``cubic``, else bilinearly."""
     T, hs, ws, _ = frames.shape
-    ho, wo = wsum.shape
+    ho, wo = accum.shape[:2]
+    n = p + 1
+    buf = np.zeros((n, n, 3))
+    wb = np.zeros((n, n))
+    wy = np.zeros(4)
+    wx = np.zeros(4)
     for k in range(cx.shape[0]):
         if alpha[k] <= 0.0:
             continue
@@ -63,36 +93,110 @@ def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, acc, wsum, colour):
         fx = cx[k] - ox
         fy = cy[k] - oy
         t = ts[k]
-        for a in range(p + 1):
-            i = oy + a
-            if i < 0 or i >= ho:
-                continue
+        off0 = sx[k] - cx[k]
+        off1 = sy[k] - cy[k]
+        off2 = p * (t - frame)
+        msum = np.zeros(3)
+        mw = 0.0
+        for a in range(n):
             v = a - fy
             wv = _feather(v, p, o)
-            if wv == 0.0:
-                continue
             ys = min(max(sy[k] + v, 0.0), hs - 1.000001)
             y0 = int(ys)
             gy = ys - y0
-            for b in range(p + 1):
+            _catmull_rom(gy, wy)
+            for b in range(n):
+                wb[a, b] = 0.0
+                i = oy + a
                 j = ox + b
-                if j < 0 or j >= wo:
+                if wv == 0.0 or i < 0 or i >= ho or j < 0 or j >= wo:
                     continue
                 u = b - fx
                 wu = _feather(u, p, o)
                 if wu == 0.0:
                     continue
-                wgt = wu * wv * alpha[k]
-                wsum[i, j] += wgt
+                wb[a, b] = wu * wv * alpha[k]
                 if not colour:
                     continue
                 xs = min(max(sx[k] + u, 0.0), ws - 1.000001)
                 x0 = int(xs)
                 gx = xs - x0
+                if cubic:
+                    _catmull_rom(gx, wx)
                 for c in range(3):
-                    val = ((frames[t, y0, x0, c] * (1 - gx) + frames[t, y0, x0 + 1, c] * gx) * (1 - gy)
-                           + (frames[t, y0 + 1, x0, c] * (1 - gx) + frames[t, y0 + 1, x0 + 1, c] * gx) * gy)
-                    acc[i, j, c] += wgt * val
+                    if cubic:
+                        val = 0.0
+                        for dy in range(4):
+                            yy = min(max(y0 - 1 + dy, 0), hs - 1)
+                            row = 0.0
+                            for dx in range(4):
+                                xx = min(max(x0 - 1 + dx, 0), ws - 1)
+                                row += wx[dx] * frames[t, yy, xx, c]
+                            val += wy[dy] * row
+                    else:
+                        val = ((frames[t, y0, x0, c] * (1 - gx) + frames[t, y0, x0 + 1, c] * gx) * (1 - gy)
+                               + (frames[t, y0 + 1, x0, c] * (1 - gx) + frames[t, y0 + 1, x0 + 1, c] * gx) * gy)
+                    buf[a, b, c] = val
+                    msum[c] += val
+                mw += 1.0
+        for a in range(n):
+            for b in range(n):
+                wgt = wb[a, b]
+                if wgt == 0.0:
+                    continue
+                i = oy + a
+                j = ox + b
+                accum[i, j, 6] += wgt
+                accum[i, j, 7] += wgt * wgt
+                if colour:
+                    for c in range(3):
+                        accum[i, j, c] += wgt * buf[a, b, c]
+                        accum[i, j, 3 + c] += wgt * msum[c] / mw
+                    accum[i, j, 8] += wgt * off0
+                    accum[i, j, 9] += wgt * off1
+                    accum[i, j, 10] += wgt * off2
+                    accum[i, j, 11] += wgt * (off0 * off0 + off1 * off1 + off2 * off2)
+
+
+def _compose(accum: np.ndarray, preserve: bool, corr_len: float) -> np.ndarray:
+    """Blend the splatted patches.
+
+    Linear (``preserve`` False): the weighted mean, i.e. feathering. Variance-preserving
+    (Heitz & Neyret 2018, made correlation-aware): ``mu + (L - mu) g`` with ``L`` the weighted
+    mean, ``mu`` the weighted mean of the patches' mean colours and the gain
+    ``g = sum w / sqrt(sum w^2 + rho ((sum w)^2 - sum w^2))``, which restores the contrast a
+    linear blend of ``n`` uncorrelated patches divides by up to ``sqrt(n)``. ``rho`` is the
+    texture's correlation at the spread of the overlapping patches' source offsets (a
+    Gaussian of correlation length ``corr_len`` px): 1 for coherent patches (same source
+    offset, g = 1), ~0 for unrelated ones.
+    """
+    w = np.maximum(accum[..., _W], 1e-9)
+    lin = accum[..., _ACC] / w[..., None]
+    if not preserve:
+        return lin
+    w2 = np.maximum(accum[..., _W2], 1e-18)
+    q = np.maximum(w * w - w2, 0.0)
+    mo = accum[..., _OFF] / w[..., None]
+    spread2 = np.maximum(accum[..., _OFF2] / w - (mo ** 2).sum(-1), 0.0)
+    d2 = 2.0 * spread2 * w * w / np.maximum(q, 1e-12)
+    rho = np.exp(-d2 / (2.0 * corr_len ** 2))
+    g = w / np.sqrt(w2 + rho * q)
+    mu = accum[..., _MEAN] / w[..., None]
+    return mu + (lin - mu) * g[..., None]
+
+
+def correlation_length(frames: np.ndarray) -> float:
+    """Correlation length (px) of the footage's texture: ``l`` with ``exp(-1 / (2 l^2))`` the
+    correlation of the grey-level detail (minus a Gaussian local mean, sigma 4 px) between
+    horizontally and vertically neighbouring pixels, averaged over up to 4 frames."""
+    rs = []
+    for f in frames[np.unique(np.linspace(0, len(frames) - 1, min(4, len(frames))).astype(int))]:
+        g = np.asarray(f, np.float32).mean(-1)
+        d = g - cv2.GaussianBlur(g, (0, 0), 4.0)
+        for a, b in ((d[:, 1:], d[:, :-1]), (d[1:], d[:-1])):
+            rs.append(float((a * b).sum() / max(np.sqrt((a * a).sum() * (b * b).sum()), 1e-12)))
+    r1 = min(max(float(np.mean(rs)), 0.01), 0.999)
+    return float(np.sqrt(-1.0 / (2.0 * np.log(r1))))
 
 
 @njit(cache=True)
@@ -125,6 +229,13 @@ def _block_features(flow: np.ndarray, p: int) -> np.ndarray:
     off = (p - 3 * b) // 2
     feats = [bm[off + i * b:off + i * b + hh, off + j * b:off + j * b + ww] for i in range(3) for j in range(3)]
     return np.concatenate(feats, axis=-1)
+
+
+def _window_feature(win: np.ndarray, p: int) -> np.ndarray:
+    """:func:`_block_features` of one ``(p, p, 2)`` window: ``(18,)``."""
+    b = max(p // 3, 1)
+    off = (p - 3 * b) // 2
+    return win[off:off + 3 * b, off:off + 3 * b].reshape(3, b, 3, b, 2).mean((1, 3)).ravel()
 
 
 def _bilinear_field(f: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -169,17 +280,42 @@ class _Patches:
             setattr(self, k, getattr(self, k)[m])
 
 
+def _consistency(win: np.ndarray, existing: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Colour consistency of candidate windows ``win`` (n, p, p, 3) with the filled output
+    ``existing`` (p, p, 3) where ``mask`` (p, p) is 1: the mean squared difference written as
+    mean + contrast + structure, ``dmu^2 + (s_a - s_b)^2 + 2 s_b^2 (1 - rho)`` per channel
+    (a = candidate, b = output), with the structure term at the output's contrast ``s_b``
+    instead of ``s_a s_b``. Plain L2 favours low-contrast candidates (their structure term is
+    small whatever they contain): the wash-out of patch-based synthesis."""
+    m = mask > 0
+    a = win[:, m]                      # (n, m, 3)
+    b = existing[m]                    # (m, 3)
+    ma, mb = a.mean(1), b.mean(0)
+    da, db = a - ma[:, None], b - mb
+    va, vb = (da * da).mean(1), (db * db).mean(0)
+    cov = (da * db).mean(1)
+    sa, sb = np.sqrt(va), np.sqrt(vb)
+    rho = cov / np.maximum(sa * sb, 1e-12)
+    return ((ma - mb) ** 2 + (sa - sb) ** 2 + 2.0 * vb * (1.0 - rho)).mean(1)
+
+
 class PatchSelector:
-    """PATCHSELECT: KD-tree over source velocity-patch features and colour consistency."""
+    """PATCHSELECT (seed 5.4): velocity-neighbourhood candidates from a KD-tree, then colour
+    consistency with the filled output and uniform use of the source."""
 
     def __init__(self, src: np.ndarray, src_flow: np.ndarray, p: int, k: int, min_life: int,
-                 stride: int = 2, max_patches: int = 60000, color_weight: float = 4.0, seed: int = 0,
-                 margin: int = 4, tolerance: float = 0.5) -> None:
-        T = src.shape[0]
-        self.tolerance = tolerance
-        self.src, self.p, self.k, self.color_weight = src, p, k, color_weight
+                 stride: int = 2, max_patches: int = 60000, seed: int = 0, margin: int = 4,
+                 tolerance: float = 0.5, velocity_noise: float = 0.0, usage_weight: float = 0.0) -> None:
+        T, hs, ws = src.shape[:3]
+        self.src, self.p, self.k = src, p, k
+        self.tolerance, self.usage_weight = tolerance, usage_weight
+        # data costs (px^2/frame^2 per feature element) closer than the flow's accuracy are ties
+        self.data_floor = velocity_noise ** 2
+        self.radius = velocity_noise * np.sqrt(18.0)
+        self.probe = 512
         last = max(T - 1 - min_life, 0) if T >= 16 else T - 1
         frames = np.arange(0, min(last, src_flow.shape[0] - 1) + 1)
+        self.last = int(frames[-1])
         rng = np.random.default_rng(seed)
         self.rng = rng
         n_per = max_patches // max(len(frames), 1)
@@ -192,50 +328,114 @@ class PatchSelector:
             sel = rng.choice(len(f), min(n_per, len(f)), replace=False) if len(f) > n_per else np.arange(len(f))
             feats.append(f[sel])
             where.append(np.stack([np.full(len(sel), t), yy.ravel()[sel], xx.ravel()[sel]], 1))
-        self.feats = np.concatenate(feats)
+        self.feats = np.concatenate(feats).astype(np.float32)
         self.where = np.concatenate(where)
         self.tree = cKDTree(self.feats)
+        # use of the source by the live output patches, per cell of p/2 px (uniformity)
+        self.cell = max(p // 2, 1)
+        self.usage = np.zeros((hs // self.cell + 1, ws // self.cell + 1))
+        self.cover = np.zeros(self.usage.shape, bool)
+        for y, x in np.unique(self.where[:, 1:], axis=0):
+            self.cover[self._cells(y, x)] = True
+        self.usage_sum = 0.0
+
+    def _cells(self, y: int, x: int) -> tuple[slice, slice]:
+        c = self.cell
+        return slice(int(y) // c, (int(y) + self.p - 1) // c + 1), slice(int(x) // c, (int(x) + self.p - 1) // c + 1)
+
+    def set_usage(self, sy: np.ndarray, sx: np.ndarray, weight: np.ndarray) -> None:
+        """Use of the source by the live patches (source windows at ``sy, sx``, weights
+        ``weight`` = opacity): how many output patches each source cell currently feeds."""
+        self.usage[:] = 0.0
+        y = np.clip(np.round(sy).astype(int), 0, None)
+        x = np.clip(np.round(sx).astype(int), 0, None)
+        for yy, xx, ok in self._cell_index(y, x):
+            m = ok & (weight > 0)
+            np.add.at(self.usage, (yy[m], xx[m]), weight[m])
+        self.usage_sum = float(self.usage[self.cover].sum())
+
+    def _cell_index(self, y: np.ndarray, x: np.ndarray):
+        """For windows with top-left (y, x): per offset of the (up to) ceil(p/c)+1 squared
+        cells they touch, the cell indices and whether the window touches that cell."""
+        c, p = self.cell, self.p
+        y0, y1, x0, x1 = y // c, (y + p - 1) // c + 1, x // c, (x + p - 1) // c + 1
+        n = -(-p // c) + 1
+        for dy in range(n):
+            for dx in range(n):
+                ok = (y0 + dy < y1) & (x0 + dx < x1)
+                yield np.minimum(y0 + dy, self.usage.shape[0] - 1), np.minimum(x0 + dx, self.usage.shape[1] - 1), ok
+
+    def _use(self, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Mean use of the source cells under windows (y, x) over the mean use of the source."""
+        mean = self.usage_sum / max(int(self.cover.sum()), 1)
+        if mean <= 0:
+            return np.zeros(len(y))
+        tot, cnt = np.zeros(len(y)), np.zeros(len(y))
+        for yy, xx, ok in self._cell_index(y, x):
+            tot += np.where(ok, self.usage[yy, xx], 0.0)
+            cnt += ok
+        return tot / cnt / mean
 
     def select(self, feature: np.ndarray, existing: np.ndarray | None, mask: np.ndarray | None,
                coherent: list[tuple[int, int, int]] = (), src_flow: np.ndarray | None = None
                ) -> tuple[tuple[int, int, int], float]:
         """PATCHSELECT for one output patch.
 
-        Candidates: the K nearest velocity patches of the video, plus "coherent" candidates
-        (the source windows that continue already placed overlapping patches, as in
-        Ashikhmin's coherent synthesis). Cost = data (mean squared velocity-feature distance,
-        px^2/frame^2) + ``color_weight`` * mean squared colour difference over the overlap
-        with the already filled output (neighbourhood consistency).
+        Candidates: the K nearest velocity patches of the video, K drawn at random among all
+        video patches within the flow's accuracy of the query (``velocity_noise`` RMS per
+        feature element; the K nearest alone crowd into one region of the source wherever its
+        flow happens to be a hair closer), and "coherent" candidates (the source windows that
+        continue already placed overlapping patches, as in Ashikhmin's coherent synthesis).
+
+        Choice, in two stages: (1) velocity: keep the candidates whose data cost (mean
+        squared velocity-feature distance, px^2/frame^2) is within ``tolerance`` of the best
+        plus ``velocity_noise^2``; (2) appearance: among them, colour consistency with the
+        already filled output (:func:`_consistency`) times ``1 + usage_weight x`` the relative
+        use of the candidate's source cells by the live output (uniform patch usage, as in
+        Jamriska et al. 2015); draw at random among those within ``tolerance`` of the lowest.
 
         Returns:
             the chosen source ``(t, y, x)`` and its data cost.
         """
         d, idx = self.tree.query(feature, k=self.k, eps=0.5)
-        cands = [tuple(int(a) for a in self.where[i]) for i in np.atleast_1d(idx)]
-        data = list(np.atleast_1d(d) ** 2 / 18.0)
+        ids, ds = [np.atleast_1d(idx)], [np.atleast_1d(d)]
+        if self.radius > 0:
+            # uniform draw from the ball by rejection: test a random sample of the video patches
+            probe = self.rng.integers(0, len(self.feats), min(self.probe, len(self.feats)))
+            dp = np.sqrt(((self.feats[probe] - feature) ** 2).sum(1))
+            inside = np.flatnonzero(dp <= self.radius)[:self.k]
+            ids.append(probe[inside])
+            ds.append(dp[inside])
+        cand = self.where[np.concatenate(ids)]
+        data = np.concatenate(ds) ** 2 / 18.0
         p = self.p
         T, hs, ws = self.src.shape[:3]
-        for t, y, x in coherent:
-            if 0 <= t < T and 0 <= y <= hs - p and 0 <= x <= ws - p and src_flow is not None:
-                f = _block_features(src_flow[t, y:y + p, x:x + p], p)[0, 0]
-                cands.append((t, y, x))
-                data.append(float(((f - feature) ** 2).sum() / 18.0))
-        e = np.array(data, dtype=np.float64)
+        coh = [(t, y, x) for t, y, x in coherent if 0 <= t < T and 0 <= y <= hs - p and 0 <= x <= ws - p]
+        if coh and src_flow is not None:
+            f = np.stack([_window_feature(src_flow[t, y:y + p, x:x + p], p) for t, y, x in coh])
+            cand = np.concatenate([cand, np.array(coh, dtype=cand.dtype)])
+            data = np.r_[data, ((f - feature) ** 2).sum(1) / 18.0]
+        good = np.flatnonzero(data <= data.min() * (1.0 + self.tolerance) + self.data_floor)
+        t, y, x = cand[good].T
+        e = np.ones(len(good))
         if existing is not None and mask is not None and mask.sum() > 0:
-            for n, (t, y, x) in enumerate(cands):
-                cand = self.src[t, y:y + p, x:x + p]
-                diff = (cand - existing) ** 2
-                e[n] += self.color_weight * float((diff.sum(-1) * mask).sum() / (3 * mask.sum()))
-        # diversity: draw among candidates within ``tolerance`` of the best cost, so that a
-        # uniform field does not repeat one source patch (texture-by-numbers "pick among good")
-        good = np.flatnonzero(e <= e.min() * (1.0 + self.tolerance) + 1e-12)
-        best = int(self.rng.choice(good))
-        return cands[best], float(data[best])
+            r = np.arange(p)
+            win = self.src[t[:, None, None], y[:, None, None] + r[None, :, None], x[:, None, None] + r[None, None, :]]
+            e = 1e-4 + _consistency(win, existing, mask)
+        if self.usage_weight > 0:
+            e = e * (1.0 + self.usage_weight * self._use(y, x))
+        # diversity: draw among the good ones, so that a uniform field does not repeat one
+        # source patch (texture-by-numbers "pick among good")
+        best = int(self.rng.choice(np.flatnonzero(e <= e.min() * (1.0 + self.tolerance) + 1e-12)))
+        cells = self._cells(y[best], x[best])
+        self.usage[cells] += 1.0
+        self.usage_sum += float(self.cover[cells].sum())
+        return (int(t[best]), int(y[best]), int(x[best])), float(data[good[best]])
 
 
 def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: np.ndarray, n_frames: int,
                     rng: np.random.Generator, settings: RenderSettings | None = None,
-                    solid: np.ndarray | None = None, color_weight: float = 0.1,
+                    solid: np.ndarray | None = None,
                     match_flow: np.ndarray | None = None,
                     on_frame: Callable[[int], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Render ``n_frames`` of the edited field by texture transfer from the source video.
@@ -247,9 +447,11 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             ``(n_frames, H, W, 2)`` one field per output frame.
         n_frames: output frames.
         rng: random generator (seeds the candidate subsampling).
-        settings: patch size, overlap, K, mode; defaults of :class:`RenderSettings`.
-        solid: optional ``(H, W)`` obstacle mask of the output (patches are not spawned
-            centred inside it; they still get colour there from zero-velocity source patches).
+        settings: patch size, overlap, K, mode, candidate search, blend; defaults of
+            :class:`RenderSettings`.
+        solid: optional ``(H, W)`` obstacle mask of the output (after frame 0 patches are not
+            spawned centred inside it; it gets colour from zero-velocity source patches, which
+            hold their source frame there).
         on_frame: optional callback ``on_frame(n)`` after output frame ``n`` (progress lines).
 
     Returns:
@@ -292,29 +494,40 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             mflow = np.concatenate([mflow, mflow[-1:]], 0)
         if mflow.shape != sflow.shape:
             raise RenderInputError(f"match_flow shape {np.shape(match_flow)} does not fit src_flow {src_flow.shape}")
-    sel = PatchSelector(src, mflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)), color_weight=color_weight)
+    sel = PatchSelector(src, mflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)),
+                        velocity_noise=s.velocity_noise, usage_weight=s.usage)
     step = p - o
-    grid_y = np.unique(np.r_[np.arange(0, H - p + 1, step), H - p])
-    grid_x = np.unique(np.r_[np.arange(0, W - p + 1, step), W - p])
+    # the grid reaches ``o`` px past the frame, so that edge pixels get a patch's full weight
+    # (an inflow edge otherwise opens an uncovered strip as soon as its patches move in)
+    grid_y = np.unique(np.r_[np.arange(-o, H - p + o + 1, step), H - p + o])
+    grid_x = np.unique(np.r_[np.arange(-o, W - p + o + 1, step), W - p + o])
     advect = s.mode == "advected"
+    cubic = s.resample == "cubic"
+    corr_len = correlation_length(src_frames)
+    preserve = s.blend == "variance"
     P = _Patches.empty()
     out = np.empty((n_frames, H, W, 3), np.uint8)
     spawned = 0
+    last_spawn: dict[tuple[int, int], int] = {}
     costs: list[float] = []
     n_live: list[int] = []
     t0 = time.perf_counter()
 
-    def spawn(cx: int, cy: int, field: np.ndarray, acc: np.ndarray, wsum: np.ndarray, alpha: float) -> None:
+    def spawn(cx: int, cy: int, alpha: float) -> None:
         nonlocal spawned
-        feat = _block_features(field[cy:cy + p, cx:cx + p], p)[0, 0]
-        w = wsum[cy:cy + p, cx:cx + p]
-        mask = (w > 0.05).astype(np.float64)
-        existing = acc[cy:cy + p, cx:cx + p] / np.maximum(w, 1e-9)[..., None]
+        feat = _window_feature(fpad[cy + o:cy + o + p, cx + o:cx + o + p], p)
+        win = accum[cy + o:cy + o + p, cx + o:cx + o + p]
+        mask = (win[..., _W] > 0.05).astype(np.float64)
+        existing = _compose(win, preserve, corr_len)
         near = np.flatnonzero((np.abs(P.cx - cx) < p - o) & (np.abs(P.cy - cy) < p - o) & (P.alpha > 0.5))
-        coh = [(int(P.ts[j]), int(round(P.sy[j] + cy - P.cy[j])), int(round(P.sx[j] + cx - P.cx[j]))) for j in near[-4:]]
+        # continuations of the overlapping patches; one whose source clip is ending continues
+        # from the start of the clip (rewound: for static texture the same content)
+        coh = [(int(P.ts[j]) % (sel.last + 1), int(round(P.sy[j] + cy - P.cy[j])), int(round(P.sx[j] + cx - P.cx[j])))
+               for j in near[-4:]]
         (t, y, x), c = sel.select(feat, existing, mask, coh, mflow)
         P.append(cx, cy, t, x, y, alpha, 1.0 / fade if alpha < 1 else 0.0)
-        _splat(src, p, o, P.cx[-1:], P.cy[-1:], P.ts[-1:], P.sx[-1:], P.sy[-1:], P.alpha[-1:], acc, wsum, True)
+        _splat(src, p, o, P.cx[-1:] + o, P.cy[-1:] + o, P.ts[-1:], P.sx[-1:], P.sy[-1:], P.alpha[-1:], n, accum, True,
+               cubic)
         spawned += 1
         costs.append(c)
 
@@ -326,11 +539,14 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                 P.cx = P.cx + v[:, 0]
                 P.cy = P.cy + v[:, 1]
             if temporal:
+                # patches centred on an obstacle hold their source frame: a solid does not change
+                live = np.ones(len(P.cx), bool) if solid is None else ~solid[
+                    np.clip(P.cy + p / 2, 0, H - 1).astype(int), np.clip(P.cx + p / 2, 0, W - 1).astype(int)]
                 if advect:
                     vs = _sample_flows(sflow, P.ts, P.sx + p / 2, P.sy + p / 2)
-                    P.sx = P.sx + vs[:, 0]
-                    P.sy = P.sy + vs[:, 1]
-                P.ts = np.minimum(P.ts + 1, T - 1)
+                    P.sx = P.sx + vs[:, 0] * live
+                    P.sy = P.sy + vs[:, 1] * live
+                P.ts = np.minimum(P.ts + live, T - 1)
             P.age += 1
             P.alpha = np.clip(P.alpha + P.dalpha, 0.0, 1.0)
             P.dalpha[(P.alpha >= 1.0) & (P.dalpha > 0)] = 0.0
@@ -355,19 +571,26 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                 rank = np.arange(len(cs)) - np.maximum.accumulate(np.where(first, np.arange(len(cs)), 0))
                 crowded = order[rank >= 2]
                 P.dalpha[crowded] = np.minimum(P.dalpha[crowded], -1.0 / fade)
-        acc = np.zeros((H, W, 3))
-        wsum = np.zeros((H, W))
+        # accumulator and field padded by ``o`` px (patches reaching past the frame)
+        accum = np.zeros((H + 2 * o, W + 2 * o, _N_ACC))
+        fpad = np.pad(field, ((o, o), (o, o), (0, 0)), mode="edge")
         if len(P.cx):
-            _splat(src, p, o, P.cx, P.cy, P.ts, P.sx, P.sy, P.alpha, acc, wsum, True)
-        # fill holes (all of frame 0) in raster order
+            _splat(src, p, o, P.cx + o, P.cy + o, P.ts, P.sx, P.sy, P.alpha, n, accum, True, cubic)
+        sel.set_usage(P.sy, P.sx, P.alpha)
+        # fill holes (all of frame 0) in raster order: a cell whose own part (its patch minus
+        # the overlaps) is under-covered on average or has an uncovered (black) pixel
         for gy in grid_y:
             for gx in grid_x:
-                cov = wsum[gy + o:gy + p - o, gx + o:gx + p - o]
-                if cov.size and cov.mean() < 0.9:
+                cov = accum[gy + 2 * o:gy + p, gx + 2 * o:gx + p, _W]
+                if cov.size and (cov.mean() < 0.9 or cov.min() < 1e-6):
                     if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2:
                         continue
-                    spawn(int(gx), int(gy), field, acc, wsum, 1.0 if n == 0 else 0.35)
-        img = acc / np.maximum(wsum, 1e-9)[..., None]
+                    # a patch spawned here is still fading in: wait for it unless pixels are bare
+                    if n - last_spawn.get((gy, gx), -fade) < fade and cov.min() >= 1e-6:
+                        continue
+                    last_spawn[(gy, gx)] = n
+                    spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
+        img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
         out[n] = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
         n_live.append(len(P.cx))
         if on_frame is not None:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from vidsim.fluid.metrics import MIN_STATIC_PX
+
 COLUMNS = ("item", "quantity", "value", "target", "met")
 
 
@@ -57,10 +59,20 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
                              "<= 1 (synthetic scenes)", None if real else s["rendered_flow_epe_px"] <= 1.0))
             rows.append(_row(item, "edited field mean speed px/frame (scale of the EPE above)", s["edited_speed_mean_px"], "", None))
             rows.append(_row(item, "patch-distance ratio", s["patch_distance_ratio"], "<= 1.5", s["patch_distance_ratio"] <= 1.5))
+            if "detail_ratio" in s:
+                rows.append(_row(item, "detail-contrast ratio output/source (wash-out < 1)", s["detail_ratio"], "", None))
             fo, fs = s["flicker_output"], s["flicker_source"]
             ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
-            rows.append(_row(item, "flicker in static regions, output (grey levels)", fo,
-                             f"<= source ({fs:.3f})" if not math.isnan(fs) else "no static source region", ok))
+            if math.isnan(fs):
+                target = f"no static source region of >= {MIN_STATIC_PX} px: not measurable"
+            elif math.isnan(fo):
+                target = f"<= source ({fs:.3f}); no static output region of >= {MIN_STATIC_PX} px: not measurable"
+            else:
+                target = f"<= source ({fs:.3f})"
+            rows.append(_row(item, "flicker in static regions, output (grey levels)", fo, target, ok))
+            if "flicker_mc_output" in s:
+                rows.append(_row(item, "motion-compensated flicker, whole frame, output (grey levels; source "
+                                 f"{s['flicker_mc_source']:.3f})", s["flicker_mc_output"], "", None))
             rows.append(_row(item, "render s/frame", s["render_s_per_frame"], "", None))
             rows.append(_row(item, "optimisation s", s["optimise_s"], "", None))
         else:

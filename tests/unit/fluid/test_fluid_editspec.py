@@ -43,6 +43,8 @@ def test_errors_name_the_key():
          r"constraints\[0\]\.paste\.to \(pasted box\)")
     _bad(lambda d: d.update(optimizer={"init": "magic"}), r"optimizer\.init='magic'")
     _bad(lambda d: d.update(render={"mode": "paint"}), r"render\.mode='paint'")
+    _bad(lambda d: d.update(render={"blend": "soft"}), r"render\.blend='soft', expected one of \['linear', 'variance'\]")
+    _bad(lambda d: d.update(render={"velocity_noise": -0.1}), r"render\.velocity_noise=-0.1")
     # a wall across the grid: sink b cannot be reached from the source
     _bad(lambda d: d.update(obstacles=[{"box": [0, 15, 32, 17]}]), "sink 'a' cannot be reached")
 

@@ -112,5 +112,13 @@ def test_metrics_table_flags_missed_targets():
     assert rows[("edit/e", "flicker in static regions, output")] == "yes"
     assert rows[("middlebury/RubberWhale", "epe_px")] == "NO"
     assert rows_to_csv(metrics_rows([mb])).startswith("item,quantity,value,target,met\n")
+    # no static region in the output: flicker not measurable (no verdict), said so in the target
+    flame = {**edit, "edit": "f", "flicker_output": float("nan"), "detail_ratio": 0.9, "flicker_mc_output": 1.1,
+             "flicker_mc_source": 0.9}
+    r = {x["quantity"].split(" (")[0]: x for x in metrics_rows([flame])}
+    assert r["flicker in static regions, output"]["met"] == ""
+    assert "not measurable" in r["flicker in static regions, output"]["target"]
+    assert r["detail-contrast ratio output/source"]["value"] == 0.9
+    assert r["motion-compensated flicker, whole frame, output"]["value"] == 1.1
     with pytest.raises(ValueError, match="not a fluid_flow"):
         metrics_rows([{"something": 1}])
