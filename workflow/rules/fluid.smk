@@ -9,7 +9,8 @@ import yaml as _fluid_yaml
 
 FLUID = config.get("fluid", {}) or {}
 FLUID_SCENES = list(FLUID.get("scenes", []))
-FLUID_PIV = list(FLUID.get("piv", []))
+FLUID_PIV = [p for p in FLUID.get("piv", []) if shared_available(f"pivlab_{p}")]
+FLUID_MIDDLEBURY = shared_available("middlebury_flow")
 FLUID_EDIT_DIR = FLUID.get("edit_dir", "docs/fluid_edits")
 FLUID_FRAMES = int(FLUID.get("frames", 120))
 FLUID_RENDER_FRAMES = int(FLUID.get("render_frames", 120))
@@ -25,17 +26,20 @@ for _e in FLUID.get("edits", []):
         _kind, _, _name = str((_fluid_yaml.safe_load(_fh) or {}).get("footage", "")).partition(":")
     if _kind not in _FLUID_PREFIX or not _name:
         raise ValueError(f"{FLUID_EDIT_DIR}/{_e}.yaml: footage must be 'synthetic:<scene>' or 'piv:<name>'")
-    FLUID_EDITS[_e] = _FLUID_PREFIX[_kind] + _name
+    if _kind == "piv" and _name not in FLUID_PIV:
+        continue  # its real recording is absent (shared_available warned)
+    FLUID_EDITS[_e] = f"{_FLUID_PREFIX[_kind]}{_name}"
 FLUID_FOOTAGE = [f"fluid_{s}" for s in FLUID_SCENES] + [f"piv_{p}" for p in FLUID_PIV]
 FLUID_SUMMARIES = (
-    [f"{RESULTS}/fluid/middlebury/summary.json"]
+    ([f"{RESULTS}/fluid/middlebury/summary.json"] if FLUID_MIDDLEBURY else [])
     + [f"{RESULTS}/fluid/flow/{f}/summary.json" for f in FLUID_FOOTAGE]
     + [f"{RESULTS}/fluid/edit/{f}/{e}/summary.json" for e, f in FLUID_EDITS.items()]
 )
 
 if stage_enabled("fluid"):
     TARGETS["fluid"] = (
-        [f"{RESULTS}/fluid/metrics/metrics.csv", f"{RESULTS}/fluid/middlebury/middlebury.png"]
+        [f"{RESULTS}/fluid/metrics/metrics.csv"]
+        + ([f"{RESULTS}/fluid/middlebury/middlebury.png"] if FLUID_MIDDLEBURY else [])
         + [f"{RESULTS}/footage/{f}/contact_sheet.png" for f in FLUID_FOOTAGE]
         + [f"{RESULTS}/fluid/flow/{f}/{x}" for f in FLUID_FOOTAGE for x in ("flow.png", "flow.rrd")]
         + [
@@ -246,7 +250,7 @@ rule fluid_metrics:
         ),
     params:
         out=get_out_dir,
-        inputs="[" + ",".join(FLUID_SUMMARIES) + "]",
+        inputs=f"[{','.join(FLUID_SUMMARIES)}]",
         extra=stage_overrides("fluid_metrics"),
     log:
         f"{RESULTS}/logs/fluid_metrics.log",
