@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from vidsim.io.paths import REPO_ROOT
+from vidsim.io.paths import REPO_ROOT, shared_data_dir
 
 SNAKEMAKE = [sys.executable, "-m", "snakemake"]
 FAMILIES = ("calibration_chessboard", "demo", "sweep_calibration", "rigid", "cloth", "fluid", "posterior", "gap")
@@ -42,8 +42,21 @@ def test_default_target_dry_run(tmp_path):
     r = _smk("-n", "--profile", "workflow/profiles/default", "--config", f"results={tmp_path}/results")
     assert r.returncode == 0, r.stdout + r.stderr
     out = r.stdout + r.stderr
-    for rule in ("calibrate_chessboard", "calibrate_scene", "reality_demo"):
-        assert rule in out
+    real = shared_data_dir().is_dir()
+    for rule in ("calibrate_scene", "reality_demo", "fit_cloth", "skirt_cloth", "fluid_edit", "fit_rigid") + (
+            ("calibrate_chessboard", "rigid_ball", "fluid_middlebury") if real else ()):
+        assert f"rule {rule}:" in out, rule
+
+
+def test_dry_run_without_real_data_skips_only_their_stages(tmp_path):
+    """A machine without ../shared/data still plans the synthetic study and says what it left out."""
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--config", f"results={tmp_path}/results",
+             f"shared_data={tmp_path}/absent")
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    assert f"real data {tmp_path}/absent/opencv_chessboard is absent" in out
+    assert "rule calibrate_chessboard:" not in out and "rule fluid_piv_footage:" not in out
+    assert "rule fit_cloth:" in out and "rule fit_rigid:" in out
 
 
 @pytest.mark.slow
