@@ -37,7 +37,7 @@ rule gap_suite:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1500,  # measured peak RSS 963 MB (whole public suite, 13 cases, 670 CPU-s)
+        mem_mb=1500,  # measured peak RSS 986 MB (whole public suite, 14 cases, 805 CPU-s, 2026-12-01)
         runtime=60,
     shell:
         "python -m vidsim.cli.gap_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
@@ -66,7 +66,7 @@ rule diagnose_rigid:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1500,  # same code path as a suite case (suite peak RSS 963 MB); not measured alone
+        mem_mb=1500,  # same code path as a suite case (suite peak RSS 986 MB); not measured alone
         runtime=20,
     shell:
         "python -m vidsim.cli.diagnose paths.footage=$(dirname {input.meta}) gap.paths.masks={input.masks} "
