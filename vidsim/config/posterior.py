@@ -51,6 +51,66 @@ class PosteriorRigidConfig:
 
 
 @dataclass
+class PosteriorClothConfig:
+    """Cloth posterior (:mod:`vidsim.posterior.cloth`): a loss posterior sampled on a GP surrogate.
+
+    Attributes:
+        params: ``params.yaml`` of ``select_cloth`` (the point estimate and the candidates' true errors).
+        fits: the fitted trials' ``fit.yaml`` files (their folders' ``evals.jsonl`` train the surrogate).
+        footage: the fitted trials' footage folders, in the order of ``fits``.
+        noise: ``sandwich`` (frames independent) or ``sandwich_hac`` (per-frame scores correlated over
+            ``hac_bandwidth`` neighbouring frames, Newey-West).
+        hac_bandwidth: Newey-West lag window, frames (used by ``sandwich_hac``).
+        design_rounds: local-design rounds (the first at the estimate, later ones at the surrogate's mode
+            with its Laplace covariance).
+        n_pairs: antithetic pairs per design round (0: 2 x dimension + 2).
+        design_scale: half-width of the first round in the unit cube.
+        n_jitter: evaluations per design round at tiny offsets (``jitter``, unit cube) of its centre:
+            they measure the roughness of the loss (chaotic folds).
+        roughness_k: the roughness term of the likelihood scale, ``w_r = D / (2 roughness_k sd)``,
+            combined with the sandwich scale as variances (0: sandwich only).
+        max_cache: cached annealing evaluations per trial given to the surrogate (nearest informative first).
+        clip_logp: targets clipped this many log-density units above the minimum.
+        gp_restarts: random restarts of the GP hyperparameter fit.
+        n_check: posterior draws at which the surrogate is compared with the true objective (>= 50).
+        check_tol: largest offset-free surrogate error accepted, log-density units.
+        refine_rounds: times the check points join the training set and the chain is redrawn when the
+            check fails.
+        n_walkers, chunk, min_steps, max_steps, min_tau_multiple: emcee settings (converged only at
+            >= min_tau_multiple autocorrelation times).
+        multimodal_ratio: density ratio (to the mode) above which a distinct minimum is a mode.
+        distinct: unit-cube distance (max norm) that makes two solutions distinct.
+        seed: seed of the design, the GP restarts, the sampler and the check draws.
+    """
+
+    params: str = ""
+    fits: list[str] = field(default_factory=list)
+    footage: list[str] = field(default_factory=list)
+    noise: str = "sandwich"
+    hac_bandwidth: int = 2
+    design_rounds: int = 2
+    n_pairs: int = 0
+    design_scale: float = 0.05
+    n_jitter: int = 6
+    jitter: float = 1e-3
+    roughness_k: float = 1.0
+    max_cache: int = 300
+    clip_logp: float = 30.0
+    gp_restarts: int = 2
+    n_check: int = 50
+    check_tol: float = 1.0
+    refine_rounds: int = 2
+    n_walkers: int = 32
+    chunk: int = 500
+    min_steps: int = 1000
+    max_steps: int = 20000
+    min_tau_multiple: float = 50.0
+    multimodal_ratio: float = 0.01
+    distinct: float = 0.1
+    seed: int = 0
+
+
+@dataclass
 class PosteriorPathsConfig:
     """Inputs of the posterior stages.
 
@@ -70,10 +130,12 @@ class PosteriorConfig:
     Attributes:
         enabled: the family's switch for Hydra users (Snakemake uses ``stages.posterior``).
         rigid: the rigid-body posterior; paths: its inputs.
+        cloth: the cloth posterior (with its inputs).
         draws_logged: posterior draws whose silhouettes are averaged into the Rerun overlay.
     """
 
     enabled: bool = True
     rigid: PosteriorRigidConfig = field(default_factory=PosteriorRigidConfig)
+    cloth: PosteriorClothConfig = field(default_factory=PosteriorClothConfig)
     paths: PosteriorPathsConfig = field(default_factory=PosteriorPathsConfig)
     draws_logged: int = 40

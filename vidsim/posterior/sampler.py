@@ -129,7 +129,7 @@ def _state_tuple(z: dict) -> tuple:
 
 def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.ndarray,
            cfg: SamplerConfig | None = None, path: str | os.PathLike | None = None,
-           progress: Callable[[dict], None] | None = None) -> Chain:
+           progress: Callable[[dict], None] | None = None, vectorize: bool = False) -> Chain:
     """Run (or resume) an emcee ensemble until converged or ``max_steps``.
 
     Args:
@@ -140,6 +140,8 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
         cfg: sampler settings.
         path: chain file (``.npz``); an existing file from the same settings is resumed.
         progress: called after every chunk with ``{"step", "max_steps", "tau_max", "seconds"}``.
+        vectorize: ``log_prob`` takes an (n, D) array and returns (n,) values (emcee's
+            ``vectorize``; a cheap surrogate evaluates the whole half-ensemble at once).
 
     Returns:
         :class:`Chain`.
@@ -163,6 +165,7 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
         chains, lps = [z["chain"]], [z["log_prob"]]
         rs = _state_tuple(z)
     rng = np.random.default_rng(cfg.seed)
+    lp_one = (lambda x: float(log_prob(np.asarray(x)[None, :])[0])) if vectorize else log_prob
     L = np.linalg.cholesky(cov + 1e-300 * np.eye(D)) if np.all(np.linalg.eigvalsh(cov) > 0) else np.diag(
         np.sqrt(np.maximum(np.diag(cov), 1e-30)))
     if chains:
@@ -172,10 +175,10 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
         # walkers must start inside the support
         for i in range(W):
             k = 0
-            while not np.isfinite(log_prob(p0[i])) and k < 100:
+            while not np.isfinite(lp_one(p0[i])) and k < 100:
                 p0[i] = center + cfg.init_scale * 0.5 ** (k // 10 + 1) * rng.normal(size=D) @ L.T
                 k += 1
-    sampler = emcee.EnsembleSampler(W, D, log_prob, moves=_moves(cfg.de_fraction))
+    sampler = emcee.EnsembleSampler(W, D, log_prob, moves=_moves(cfg.de_fraction), vectorize=vectorize)
     if rs is None:
         sampler.random_state = np.random.RandomState(cfg.seed).get_state()
     else:

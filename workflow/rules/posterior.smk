@@ -1,19 +1,37 @@
 # Posteriors (issue 6): how sure each estimate is. What runs: `posterior:` in the Snakemake config
-# (rigid_cases = names of `rigid: cases:` whose fit gets a posterior, or "all"; hydra = Hydra
-# overrides of the family, e.g. "posterior=quick"); how: Hydra (`posterior.*`;
-# per-rule `overrides: {posterior_rigid: ...}`, e.g. posterior=quick for short chains).
+# (rigid_cases = names of `rigid: cases:` whose fit gets a posterior, or "all"; cloth_cases = fabrics
+# or twins (names of `cloth: fabrics:`/`cloth: twins:`) whose selection gets a posterior, or "all";
+# hydra = Hydra overrides of the family, e.g. "posterior=quick"); how: Hydra (`posterior.*`;
+# per-rule `overrides: {posterior_rigid: ..., posterior_cloth: ...}`).
 # Layout: {RESULTS}/posterior/rigid/{case}/{summary.csv,posterior.yaml,corner.png,correlation.png,
-# chain.npz,posterior.rrd}. Needs the rigid family's fit (workflow/rules/rigid.smk).
+# chain.npz,posterior.rrd}; {RESULTS}/posterior/cloth/{fabric}/{summary.csv,posterior.yaml,corner.png,
+# correlation.png,check.png,chain.npz,evals.jsonl}. Needs the rigid family's fit
+# (workflow/rules/rigid.smk) and the cloth family's fits and selection (workflow/rules/cloth.smk).
 POSTERIOR = config.get("posterior", {}) or {}
 _rc = POSTERIOR.get("rigid_cases", []) or []
 POSTERIOR_RIGID_CASES = list(RIGID_CASES) if _rc == "all" else [c for c in _rc if c in RIGID_CASES]
+_cc = POSTERIOR.get("cloth_cases", []) or []
+_cloth_all = list(CLOTH_FABRICS) + [t for t in CLOTH_TWINS if t not in CLOTH_FABRICS]
+POSTERIOR_CLOTH_CASES = _cloth_all if _cc == "all" else [c for c in _cc if c in _cloth_all]
 POSTERIOR_HYDRA = str(POSTERIOR.get("hydra", "") or "")
 
 
-if stage_enabled("posterior") and stage_enabled("rigid"):
-    TARGETS["posterior"] = [
-        f"{RESULTS}/posterior/rigid/{c}/{f}" for c in POSTERIOR_RIGID_CASES for f in ("summary.csv", "corner.png")
-    ]
+if stage_enabled("posterior"):
+    TARGETS["posterior"] = []
+    if stage_enabled("rigid"):
+        TARGETS["posterior"] += [
+            f"{RESULTS}/posterior/rigid/{c}/{f}" for c in POSTERIOR_RIGID_CASES for f in ("summary.csv", "corner.png")
+        ]
+    if stage_enabled("cloth"):
+        TARGETS["posterior"] += [
+            f"{RESULTS}/posterior/cloth/{c}/{f}" for c in POSTERIOR_CLOTH_CASES for f in ("summary.csv", "check.png")
+        ]
+
+
+def posterior_cloth_inputs(wildcards, input):
+    """posterior.cloth.* overrides: the fabric's selection, its fits and footage folders (trial order)."""
+    return (f"posterior.cloth.params={input.params} posterior.cloth.fits=[{','.join(input.fits)}] "
+            f"posterior.cloth.footage={cloth_folders(input.metas)}")
 
 
 rule posterior_rigid:
@@ -59,3 +77,57 @@ rule posterior_rigid:
     shell:
         "python -m vidsim.cli.posterior_rigid paths.footage={params.footage} posterior.paths.fit={input.fit} "
         "posterior.paths.masks={input.masks} paths.out={params.out} {params.family} {params.extra} > {log} 2>&1"
+
+
+rule posterior_cloth:
+    """Cloth posterior of one fabric's selection: sandwich-calibrated E1+E2 likelihood on a GP surrogate, checked at 50 draws."""
+    input:
+        params=f"{RESULTS}/cloth/select/{{fabric}}/params.yaml",
+        fits=expand(f"{RESULTS}/cloth/fit/{{{{fabric}}}}_{{trial}}/fit.yaml", trial=CLOTH_FIT_TRIALS),
+        metas=expand(f"{RESULTS}/footage/cloth_{{{{fabric}}}}_{{trial}}/meta.yaml", trial=CLOTH_FIT_TRIALS),
+    output:
+        summary=report(
+            f"{RESULTS}/posterior/cloth/{{fabric}}/summary.csv",
+            caption="../report/posterior_cloth_summary.rst",
+            category="Posteriors",
+            subcategory="cloth {fabric}",
+        ),
+        corner=report(
+            f"{RESULTS}/posterior/cloth/{{fabric}}/corner.png",
+            caption="../report/posterior_cloth_corner.rst",
+            category="Posteriors",
+            subcategory="cloth {fabric}",
+        ),
+        corr=report(
+            f"{RESULTS}/posterior/cloth/{{fabric}}/correlation.png",
+            caption="../report/posterior_cloth_correlation.rst",
+            category="Posteriors",
+            subcategory="cloth {fabric}",
+        ),
+        check=report(
+            f"{RESULTS}/posterior/cloth/{{fabric}}/check.png",
+            caption="../report/posterior_cloth_check.rst",
+            category="Posteriors",
+            subcategory="cloth {fabric}",
+        ),
+        diagnostics=f"{RESULTS}/posterior/cloth/{{fabric}}/posterior.yaml",
+        chain=f"{RESULTS}/posterior/cloth/{{fabric}}/chain.npz",
+    params:
+        out=get_out_dir,
+        inputs=posterior_cloth_inputs,
+        cloth=CLOTH_HYDRA,
+        fabric=cloth_fabric_overrides,
+        family=POSTERIOR_HYDRA,
+        extra=stage_overrides("posterior_cloth"),
+    log:
+        f"{RESULTS}/logs/posterior_cloth_{{fabric}}.log",
+    benchmark:
+        f"{RESULTS}/benchmarks/posterior_cloth_{{fabric}}.tsv"
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1500,
+        runtime=30,
+    shell:
+        "python -m vidsim.cli.posterior_cloth paths.out={params.out} {params.inputs} "
+        "{params.cloth} {params.fabric} {params.family} {params.extra} > {log} 2>&1"

@@ -1,0 +1,85 @@
+"""Stage posterior_cloth through the CLI on a tiny twin reality (reality -> fits -> selection -> posterior).
+
+A coarse twin (10x10 mesh, 16 frames, every second one fitted) of the estimator's own simulator is filmed for exp1 and exp2,
+each trial's stretch stiffness is fitted (other parameters known), the selection picks one, and the
+posterior stage samples its surrogate posterior and checks it at 50 draws against the simulator.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[2]
+FAST = ["log.rerun=false", "log.progress=false"]
+
+
+def _run(mod: str, *args: str) -> str:
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    p = subprocess.run([sys.executable, "-m", mod, *args, *FAST], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=600)
+    assert p.returncode == 0, p.stdout[-2000:] + p.stderr[-2000:]
+    return p.stdout + p.stderr
+
+
+@pytest.fixture(scope="module")
+def tiny_twin(tmp_path_factory):
+    res = tmp_path_factory.mktemp("postcloth")
+    cal = res / "calibration" / "cloth"
+    _run("vidsim.cli.calibrate", "camera=cloth", "projector=cloth", "calibrate=cloth", "cloth.calibration.n_views=6",
+         "cloth.calibration.n_projector_views=6", f"paths.results={res}", f"paths.out={cal}")
+    folders = []
+    for trial in ("exp1", "exp2"):
+        fp = res / "footage" / f"cloth_twin_{trial}"
+        _run("vidsim.cli.cloth_reality", f"paths.results={res}", f"paths.calibration={cal / 'calibration.yaml'}",
+             f"paths.out={fp}", "cloth.reality.kind=twin", f"cloth.reality.motion={trial}", "cloth.reality.n_frames=16",
+             "cloth.reality.twin_resolution=10", "cloth.reality.settle_s=0.5")
+        folders.append(fp)
+    return res, folders
+
+
+def test_posterior_cloth_stage_on_a_tiny_twin(tiny_twin):
+    res, folders = tiny_twin
+    truth = yaml.safe_load((folders[0].parent / f"{folders[0].name}.truth.yaml").read_text())["params"]
+    model = ["cloth.model.resolution=10", "cloth.model.settle_s=0.5", "cloth.model.frame_stride=2", "cloth.fit.estimate=[stretch]",
+             "cloth.fit.grid_params=[stretch]", "cloth.fit.grid_levels=4", "cloth.fit.budget=6",
+             "cloth.fit.evals_per_T=3", "cloth.fit.n_candidates=2",
+             *[f"+cloth.fit.fixed.{k}={v}" for k, v in truth.items() if k not in ("stretch", "density")]]
+    fits = []
+    for fp in folders:
+        out = res / "cloth" / "fit" / fp.name.replace("cloth_", "")
+        _run("vidsim.cli.cloth_fit", f"paths.results={res}", f"paths.footage={fp}", f"paths.out={out}", *model)
+        fits.append(out / "fit.yaml")
+    sel = res / "cloth" / "select" / "twin"
+    lists = f"[{','.join(map(str, fits))}]", f"[{','.join(map(str, folders))}]"
+    _run("vidsim.cli.cloth_select", f"paths.results={res}", f"paths.out={sel}", f"cloth.select.fits={lists[0]}",
+         f"cloth.select.footage={lists[1]}", *model)
+    post = res / "posterior" / "cloth" / "twin"
+    log = _run("vidsim.cli.posterior_cloth", f"paths.results={res}", f"paths.out={post}",
+               f"posterior.cloth.params={sel / 'params.yaml'}", f"posterior.cloth.fits={lists[0]}",
+               f"posterior.cloth.footage={lists[1]}", *model, "posterior.cloth.design_rounds=1", "posterior.cloth.n_jitter=3",
+               "posterior.cloth.refine_rounds=0", "posterior.cloth.max_steps=3000", "posterior.cloth.n_walkers=8",
+               "posterior.cloth.chunk=250")
+    for f in ("summary.csv", "posterior.yaml", "corner.png", "correlation.png", "check.png", "chain.npz", "evals.jsonl"):
+        assert (post / f).is_file(), f
+    doc = yaml.safe_load((post / "posterior.yaml").read_text())
+    d, ck = doc["diagnostics"], doc["surrogate_check"]
+    assert doc["names"] == ["stretch"]
+    # the fits' caches reproduce (same model settings) and train the surrogate
+    assert all(c["used"] for c in doc["cache"]), doc["cache"]
+    assert ck["n_draws"] == 50 and ck["n_failed"] == 0 and np.isfinite(ck["max_abs_error_logp"])
+    assert isinstance(d["converged"], bool) and d["converged"] == (d["n_steps"] >= 50 * d["tau_max"])
+    assert d["w"] > 0 and d["true_evaluations"] >= 50 + 2 * 4 + 1
+    lines = (post / "summary.csv").read_text().splitlines()
+    assert lines[0] == "name,unit,point,q05,median,q95,mean,sd"
+    name, unit, point, q05, med, q95 = lines[1].split(",")[:6]
+    assert name == "stretch" and unit == "N/m" and float(q05) <= float(med) <= float(q95)
+    # the stretch of the twin (300 N/m) from a 20-4000 N/m box: a finite, informative interval near it
+    assert float(q95) / float(q05) < 20 and float(q05) / 3 < truth["stretch"] < 3 * float(q95)
+    assert "posterior_cloth: converged" in log
