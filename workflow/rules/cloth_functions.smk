@@ -48,3 +48,9 @@ def cloth_compare_inputs(wildcards, input):
 def cloth_meta_folders(wildcards, input):
     """Hydra list of the footage folders of a rule's `metas` input (the fitted trials)."""
     return cloth_folders(input.metas)
+
+
+def posterior_cloth_inputs(wildcards, input):
+    """posterior.cloth.* overrides: the fabric's selection, its fits and footage folders (trial order)."""
+    return (f"posterior.cloth.params={input.params} posterior.cloth.fits=[{','.join(input.fits)}] "
+            f"posterior.cloth.footage={cloth_folders(input.metas)}")

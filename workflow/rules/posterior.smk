@@ -28,12 +28,6 @@ if stage_enabled("posterior"):
         ]
 
 
-def posterior_cloth_inputs(wildcards, input):
-    """posterior.cloth.* overrides: the fabric's selection, its fits and footage folders (trial order)."""
-    return (f"posterior.cloth.params={input.params} posterior.cloth.fits=[{','.join(input.fits)}] "
-            f"posterior.cloth.footage={cloth_folders(input.metas)}")
-
-
 rule posterior_rigid:
     """emcee posterior of a rigid fit: sandwich-calibrated silhouette likelihood, 50-tau convergence check."""
     input:
@@ -126,8 +120,8 @@ rule posterior_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1500,
-        runtime=30,
+        mem_mb=1500,  # measured peak RSS 392 MB (quick twin, 5 parameters), 587 MB (default: 20x20, 9 parameters)
+        runtime=30,  # measured 2.1 CPU-min (quick twin), 15.4 CPU-min (default setting, no annealing cache)
     shell:
         "python -m vidsim.cli.posterior_cloth paths.out={params.out} {params.inputs} "
         "{params.cloth} {params.fabric} {params.family} {params.extra} > {log} 2>&1"
