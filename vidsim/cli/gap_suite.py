@@ -7,10 +7,16 @@ are the entries of ``gap.cases`` (``conf/gap/default.yaml``: the public suite; a
 (scores and the headline rates), ``confusion.csv``/``confusion.png`` (true label vs first named
 effect), ``shrinkage.csv`` (held-out gap before/after, floor, closure, recovered strength) and
 ``suite.rrd`` (per case: silhouettes and gap curves over the frame timeline).
+
+Checkpoint: cases are written as they finish to ``.<out>.part/cases/``; a rerun after a kill (or a
+crash in one case) keeps every finished case whose stored key (its case entry, ``gap.diagnose`` and
+``gap.scene``) equals the current one and runs only the rest. A resumed case is not re-logged to
+``suite.rrd`` (its ``cases/<name>.png`` and ``.json`` are kept).
 """
 
 from __future__ import annotations
 
+import json
 import shutil
 import sys
 import time
@@ -46,6 +52,20 @@ def headline(scores: dict[str, dict]) -> dict:
         "closure_at_least_50pct": f"{sum(c >= 0.5 for c in clos)}/{len(clos)}",
         "strength_within_30pct": f"{sum(r <= 0.3 for r in rec)}/{len(rec)}",
     }
+
+
+def finished_case(folder: Path, name: str, key: dict) -> dict | None:
+    """The score of case ``name`` from an interrupted run, when it finished with the same ``key``."""
+    js, png = folder / f"{name}.json", folder / f"{name}.png"
+    if not (js.exists() and png.exists()):
+        return None
+    try:
+        stored = json.loads(js.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    if stored.get("key") != json.loads(json.dumps(key)):
+        return None
+    return stored["score"]
 
 
 def _plot_confusion(rows: list[str], cols: list[str], M: np.ndarray, path: Path) -> None:
@@ -93,20 +113,34 @@ def run(cfg: DictConfig) -> None:
                                height=sc.height, focal=sc.focal)
     out = Path(cfg.paths.out)
     tmp = out.with_name(f".{out.name}.part")
-    shutil.rmtree(tmp, ignore_errors=True)
-    (tmp / "cases").mkdir(parents=True)
+    (tmp / "cases").mkdir(parents=True, exist_ok=True)
+    for f in (tmp / "cases").iterdir():  # cases no longer asked for do not reach the output
+        if f.stem not in names:
+            f.unlink()
+    common = {"diagnose": OmegaConf.to_container(cfg.gap.diagnose, resolve=True),
+              "scene": OmegaConf.to_container(sc, resolve=True)}
     prog = Progress(len(names), "gap_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
+    resumed: list[str] = []
     t0 = time.perf_counter()
     with make_logger(tmp / "suite.rrd", "vidsim.gap_suite", cfg.log.rerun) as lg:
         for n in names:
+            key = {"case": cases[n], **common}
+            done = finished_case(tmp / "cases", n, key)
+            if done is not None:
+                scores[n] = done
+                resumed.append(n)
+                prog.update(note=f"{n}: resumed from the checkpoint")
+                continue
             try:
                 d, s, masks, _ = run_case(cases[n], dcfg, scene)
             except GapError as e:
                 raise ConfigError(f"gap.cases.{n}: {e}") from e
             scores[n] = s
-            write_json(tmp / "cases" / f"{n}.json", {"case": cases[n], "score": s, "diagnosis": d.to_dict()})
             plot_diagnosis(d, tmp / "cases" / f"{n}.png", title=f"{n}: withheld {s['label']}")
+            # the json last: its presence (with the same key) marks the case as finished
+            write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s,
+                                                     "diagnosis": d.to_dict()})
             log_diagnosis(lg, d, masks, prefix=f"{n}/")
             prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
     rows, cols, M = confusion(scores)
@@ -130,6 +164,7 @@ def run(cfg: DictConfig) -> None:
                 (f"{r['rel_error']:.3f}" if r else ""))))
     write_text(tmp / "shrinkage.csv", "\n".join(lines) + "\n")
     summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
+            "resumed_cases": resumed,
             "diagnose_config": OmegaConf.to_container(cfg.gap.diagnose, resolve=True)}
     write_json(tmp / "suite.json", summ)
     print(f"gap_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)

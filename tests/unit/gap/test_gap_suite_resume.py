@@ -1,0 +1,86 @@
+"""gap_suite checkpoint: a case that finished before a crash is kept, the rest run, a changed key reruns.
+
+``run_case`` (film, fit, diagnose: minutes per case) is replaced by a recorder so that the test
+checks the stage's bookkeeping only; the real cases run in the suite's own tests and stage.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import vidsim.cli.gap_suite as stage
+import vidsim.gap.suite as suite
+from vidsim.config import CONF_DIR
+
+
+class _Diag:
+    def __init__(self, name: str):
+        self.name = name
+
+    def to_dict(self) -> dict:
+        return {"fake": self.name}
+
+
+def _score(label: str) -> dict:
+    return {"label": label, "named": [], "named_first": "none", "correct": label == "none", "gap_present": False,
+            "heldout_before_px": 1.0, "noise_floor_px": 0.9, "closure": {}, "recovery": {}}
+
+
+def _cfg(out: Path, *extra: str):
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=[f"paths.results={out.parent}", f"paths.out={out}", "log.rerun=false",
+                                            "log.progress=false", "gap.only=[null_a,null_b,lens_k1]", *extra])
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    made: list[int] = []
+    crash_at: dict[str, int | None] = {"seed": None}
+
+    def fake_run_case(case, dcfg, scene):
+        if case["seed"] == crash_at["seed"]:
+            raise RuntimeError("killed mid-suite")
+        made.append(case["seed"])
+        return _Diag(str(case["seed"])), _score(case["label"]), None, None
+
+    monkeypatch.setattr(suite, "run_case", fake_run_case)
+    monkeypatch.setattr(stage, "plot_diagnosis", lambda d, path, title="": Path(path).write_bytes(b"png"))
+    monkeypatch.setattr(stage, "log_diagnosis", lambda lg, d, masks, prefix="": None)
+    return made, crash_at
+
+
+def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls):
+    made, crash_at = calls
+    out = tmp_path / "suite"
+    crash_at["seed"] = 203  # lens_k1, the third case
+    with pytest.raises(RuntimeError):
+        stage.run(_cfg(out))
+    assert made == [201, 202] and not out.exists()
+    assert sorted(p.name for p in (tmp_path / ".suite.part" / "cases").iterdir()) == [
+        "null_a.json", "null_a.png", "null_b.json", "null_b.png"]
+
+    crash_at["seed"] = None
+    stage.run(_cfg(out))
+    assert made == [201, 202, 203]  # only the unfinished case ran
+    summ = json.loads((out / "suite.json").read_text())
+    assert summ["resumed_cases"] == ["null_a", "null_b"]
+    assert summ["headline"]["null_cases_naming_nothing"] == "2/2"
+    assert not (tmp_path / ".suite.part").exists()
+
+    # a crash after a changed diagnosis setting: the stored cases do not match and are recomputed
+    crash_at["seed"] = 203
+    with pytest.raises(RuntimeError):
+        stage.run(_cfg(out, "gap.diagnose.top_k=2"))
+    crash_at["seed"] = None
+    stage.run(_cfg(out, "gap.diagnose.top_k=3", "gap.only=[null_a,lens_k1]"))
+    # top_k=3 is the default: null_a's checkpoint (written with top_k=2) is stale, so it reruns too
+    assert made == [201, 202, 203, 201, 202, 201, 203]
+    summ = json.loads((out / "suite.json").read_text())
+    assert summ["resumed_cases"] == [] and sorted(summ["cases"]) == ["lens_k1", "null_a"]
+    assert sorted(p.name for p in (out / "cases").iterdir()) == ["lens_k1.json", "lens_k1.png",
+                                                                 "null_a.json", "null_a.png"]
