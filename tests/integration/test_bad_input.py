@@ -105,6 +105,7 @@ CASES = [
     ("unknown config key", _nothing, ["camera.focal=3"], "camera.focal"),
     ("NaN config value", _nothing, ["camera.fx=nan"], "camera.fx = nan"),
     ("negative config value", _nothing, ["render.noise_sigma=-1"], "render.noise_sigma = -1"),
+    ("negative noise of a family", _nothing, ["calibrate.noise_sigma=-1"], "calibrate.noise_sigma = -1"),
     ("path escaping results", _nothing, ["paths.out=../../outside"], "escapes the results folder"),
     ("negative stiffness", _nothing, ["cloth.reality.twin_params.stretch=-300"], "cloth.reality.twin_params.stretch = -300"),
     ("NaN in a cloth parameter", _nothing, ["cloth.reality.twin_params.bend=nan"], "cloth.reality.twin_params.bend = nan"),

@@ -38,6 +38,26 @@ def test_hydra_multirun_writes_each_point_to_its_own_folder(tmp_path):
     assert rms["4"] > 1.3 * rms["0.5"]
 
 
+def test_a_failing_sweep_point_is_marked_and_the_sweep_goes_on(tmp_path):
+    res = tmp_path / "results"
+    r = subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.calibrate", "-m", "calibrate.noise_sigma=-1,0.5", "calibrate.n_views=4",
+         f"paths.results={res}", "log.rerun=false"],
+        cwd=REPO_ROOT, capture_output=True, text=True, env=_env(), timeout=300,
+    )
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "Traceback" not in r.stderr
+    assert "calibrate.noise_sigma = -1.0 is not valid" in r.stderr
+    assert "1 sweep point(s) failed" in r.stderr
+    sweep = res / "sweeps" / "calibrate"
+    bad = sweep / "calibrate.n_views=4,calibrate.noise_sigma=-1,log.rerun=False"
+    good = sweep / "calibrate.n_views=4,calibrate.noise_sigma=0.5,log.rerun=False"
+    assert not bad.exists()  # the failed point (first in the sweep) left nothing behind
+    assert (good / "summary.csv").exists()  # and the next point still ran
+    rows = list(csv.DictReader((sweep / "failed.csv").open()))
+    assert [row["point"] for row in rows] == [bad.name] and "noise_sigma" in rows[0]["error"]
+
+
 def test_paramspace_plans_one_job_per_table_row(tmp_path):
     table = tmp_path / "t.tsv"
     table.write_text("calibrate__noise_sigma\tcalibrate__n_views\n1.0\t4\n3.0\t4\n3.0\t8\n")

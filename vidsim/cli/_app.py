@@ -37,9 +37,40 @@ def check_paths(cfg: DictConfig) -> None:
         raise ConfigError(f"paths.out = {cfg.paths.out!r} escapes the results folder {str(results)!r} (paths.results)")
 
 
+_FAILED_POINTS: list[str] = []  # sweep points of this process that failed (multirun)
+
+
+def _in_multirun() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    return HydraConfig.initialized() and HydraConfig.get().mode == RunMode.MULTIRUN
+
+
 def _fail(name: str, e: Exception) -> None:
+    """One line on stderr; exit 2 -- except inside a sweep, where the point is marked failed (its
+    line, and a row of ``failed.csv`` in the sweep folder) and the sweep goes on to the next point;
+    the sweep then ends with exit code 2."""
     print(f"vidsim {name}: error: {e}", file=sys.stderr)
-    sys.exit(2)
+    if not _in_multirun():
+        sys.exit(2)
+    from pathlib import Path
+
+    from hydra.core.hydra_config import HydraConfig
+
+    from vidsim.io.atomic import write_text
+
+    hc = HydraConfig.get()
+    point = hc.job.override_dirname or str(hc.job.num)
+    _FAILED_POINTS.append(point)
+    msg = str(e).replace('"', "'")
+    row = f'"{point}","{msg}"\n'
+    csv = Path(hc.sweep.dir) / "failed.csv"
+    old = csv.read_text() if csv.exists() else "point,error\n"
+    write_text(csv, old + row)
+    job_dir = Path(hc.runtime.output_dir)
+    if job_dir.is_dir() and not any(job_dir.iterdir()):
+        job_dir.rmdir()  # nothing of the failed point is left behind
 
 
 def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None]:
@@ -76,6 +107,10 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
             sys.argv.append(f"paths.out=${{paths.results}}/sweeps/{name}/${{hydra:job.override_dirname}}")
         _precheck_overrides(name, sys.argv[1:])
         _main()
+        if _FAILED_POINTS:
+            print(f"vidsim {name}: {len(_FAILED_POINTS)} sweep point(s) failed (the others ran): "
+                  f"{', '.join(_FAILED_POINTS)}", file=sys.stderr)
+            sys.exit(2)
 
     _entry.__name__ = name
     return _entry

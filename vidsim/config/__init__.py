@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 from hydra.core.config_store import ConfigStore
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from vidsim.config.schema import GROUPS, VidsimConfig
 from vidsim.errors import ConfigError
@@ -64,8 +64,29 @@ def validate(cfg: DictConfig) -> None:
     for k in ("exposure_s", "rolling_shutter_s", "time_jitter_s"):
         _check(_finite(im[k]) and im[k] >= 0, f"effects.imaging.{k}", im[k], ">= 0 s")
     _check(cfg.calibrate.n_views >= 3, "calibrate.n_views", cfg.calibrate.n_views, ">= 3 views")
+    for key, v in _leaves_named(cfg, "noise_sigma"):  # every family's sensor noise
+        _check(_finite(v) and v >= 0, key, v, ">= 0 (sensor noise, grey levels)")
     _validate_cloth_params(cfg)
     _check(cfg.calibrate.n_projector_views >= 3, "calibrate.n_projector_views", cfg.calibrate.n_projector_views, ">= 3 views")
+
+
+def _leaves_named(node: Any, name: str, prefix: str = "") -> list[tuple[str, Any]]:
+    """``(dotted key, value)`` of every leaf called ``name`` in a config tree."""
+    found: list[tuple[str, Any]] = []
+    if isinstance(node, DictConfig):
+        for k in node.keys():
+            if OmegaConf.is_missing(node, k):
+                continue
+            try:
+                v = node[k]
+            except Exception:  # an interpolation that only resolves elsewhere (e.g. ${hydra:...})
+                continue
+            key = f"{prefix}{k}"
+            if k == name and not isinstance(v, (DictConfig, ListConfig)):
+                found.append((key, v))
+            elif isinstance(v, DictConfig):
+                found += _leaves_named(v, name, key + ".")
+    return found
 
 
 def _validate_cloth_params(cfg: DictConfig) -> None:
