@@ -21,13 +21,17 @@ def _env() -> dict:
     return env
 
 
-def test_hydra_multirun_writes_each_point_to_its_own_folder(tmp_path):
-    res = tmp_path / "results"
-    r = subprocess.run(
-        [sys.executable, "-m", "vidsim.cli.calibrate", "-m", "calibrate.noise_sigma=0.5,4", "calibrate.n_views=4",
+def _calibrate_sweep(res: Path, sigmas: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.calibrate", "-m", f"calibrate.noise_sigma={sigmas}", "calibrate.n_views=4",
          f"paths.results={res}", "log.rerun=false"],
         cwd=REPO_ROOT, capture_output=True, text=True, env=_env(), timeout=300,
     )
+
+
+def test_hydra_multirun_writes_each_point_to_its_own_folder(tmp_path):
+    res = tmp_path / "results"
+    r = _calibrate_sweep(res, "0.5,4")
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
     rms = {}
     for sigma in ("0.5", "4"):
@@ -40,11 +44,7 @@ def test_hydra_multirun_writes_each_point_to_its_own_folder(tmp_path):
 
 def test_a_failing_sweep_point_is_marked_and_the_sweep_goes_on(tmp_path):
     res = tmp_path / "results"
-    r = subprocess.run(
-        [sys.executable, "-m", "vidsim.cli.calibrate", "-m", "calibrate.noise_sigma=-1,0.5", "calibrate.n_views=4",
-         f"paths.results={res}", "log.rerun=false"],
-        cwd=REPO_ROOT, capture_output=True, text=True, env=_env(), timeout=300,
-    )
+    r = _calibrate_sweep(res, "-1,0.5")
     assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
     assert "Traceback" not in r.stderr
     assert "calibrate.noise_sigma = -1.0 is not valid" in r.stderr
