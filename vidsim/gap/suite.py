@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import fields
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -34,14 +34,19 @@ from vidsim.rigid.body import BoxBody
 SPECIAL_LABELS = ("none", "unexplained")
 
 
-def case_labels(case: dict) -> list[str]:
-    """The effect names a case expects to be named (empty for ``none``/``unexplained``)."""
+def case_labels(case: dict, library: Mapping[str, Any] = RIGID_EFFECTS, error: type[ValueError] = GapError
+                ) -> list[str]:
+    """The effect names a case expects to be named (empty for ``none``/``unexplained``).
+
+    ``library``: the domain's candidate effects (rigid by default); ``error``: raised for a label
+    that is neither one of them nor special.
+    """
     lab = case.get("label", "none")
     labs = [lab] if isinstance(lab, str) else list(lab)
     for x in labs:
-        if x not in RIGID_EFFECTS and x not in SPECIAL_LABELS:
-            raise GapError(f"case label {x!r} is neither a library effect {sorted(RIGID_EFFECTS)} nor one of "
-                           f"{SPECIAL_LABELS}")
+        if x not in library and x not in SPECIAL_LABELS:
+            raise error(f"case label {x!r} is neither a library effect {sorted(library)} nor one of "
+                        f"{SPECIAL_LABELS}")
     return [x for x in labs if x not in SPECIAL_LABELS]
 
 
@@ -228,10 +233,12 @@ def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidReality
     return diag, sc, masks, th
 
 
-def confusion(scores: dict[str, dict]) -> tuple[list[str], list[str], np.ndarray]:
-    """Confusion matrix of single-label cases: rows true label, columns first named effect."""
+def confusion(scores: dict[str, dict], library: Mapping[str, Any] = RIGID_EFFECTS
+              ) -> tuple[list[str], list[str], np.ndarray]:
+    """Confusion matrix of single-label cases: rows true label, columns first named effect
+    (``library``: the domain's candidate effects, rigid by default)."""
     rows = sorted({s["label"] for s in scores.values()})
-    cols = sorted({s["named_first"] for s in scores.values()} | {r for r in rows if r in RIGID_EFFECTS} | {"none"})
+    cols = sorted({s["named_first"] for s in scores.values()} | {r for r in rows if r in library} | {"none"})
     M = np.zeros((len(rows), len(cols)), int)
     for s in scores.values():
         M[rows.index(s["label"]), cols.index(s["named_first"])] += 1

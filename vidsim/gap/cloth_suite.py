@@ -1,0 +1,371 @@
+"""The withheld-effect suite, cloth domain: make a case, fit it, diagnose it blind, score vs truth.
+
+A case is a plain mapping (a config entry, so a user adds one without code)::
+
+    {label: wind, seed: 302, effects: {wind: [0.5, 0.8, 0.0]}}
+    {label: [wind, time_offset], seed: 310, effects: {wind: [...], time_offset: 0.012}}
+    {label: unexplained, seed: 311, effects: {gust: {wind: [0.8, 0.8, 0], start_s: 0.8}}}
+    {label: none, seed: 320, kind: mujoco, fabric: linen, effects: {}}    # MuJoCo reality
+
+``kind: twin`` (default) is the *twin* reality: the estimator's own simulator on a finer mesh
+(``scene.twin_resolution``) with known parameters (``scene.twin_params``; the ones the fit does
+not estimate equal the model's fixed values, so the null case has only mesh resolution,
+rendering, segmentation and noise between it and the model). Its effects (all off by default)::
+
+    wind: [wx, wy, wz]             steady uniform air velocity, m/s
+    gravity_tilt: {degrees, azimuth_deg}   the world frame is not level
+    damping: f                     bend, stretch and shear damping x f
+    drag: {drag_degrade: v, ...}   drag parameters the fit holds fixed, set to v
+    grip_slip: {drop, lag, ramp_s} the fabric slides down through both grips by ``drop`` m over
+                                   ``ramp_s`` s (smoothstep) and follows the measured path ``lag`` s
+                                   late (the MuJoCo reality's slip); mocap reports the commanded path
+    lens_k1: k1                    radial distortion the calibration does not know
+    motion_blur: {samples, exposure}   film_cloth's blur (exposure: fraction of the frame interval,
+                                   ending at the frame time)
+    time_offset: dt                frames captured dt s after the mocap clock says
+    time_rate: r                   the camera clock runs fast by r
+    gust: {wind, start_s}          out of the library: a wind that starts blowing mid-clip
+
+``kind: mujoco`` films :func:`vidsim.reality.cloth.simulate_swatch` (``fabric``, ``effects`` =
+:data:`vidsim.reality.cloth.DEFAULT_EFFECTS` entries); its air model, membrane and bending differ
+from the estimator's, so even its null case has a structural gap.
+
+``label`` is the library effect(s) that should be named, ``none`` for a null case, ``unexplained``
+for an effect outside the library. Only :func:`score_case` reads the truth; :func:`run_case` hands
+the fit and the diagnosis nothing but the footage's features, times, measured corners, the
+devices, size, density and the sensor noise measured on the empty frames.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from vidsim.cloth import ClothParams, mid_range_params
+from vidsim.gap.cloth_diagnose import ClothDiagnoseConfig, ClothDiagnosis, ClothTrialInput, diagnose_cloth
+from vidsim.gap import suite as rigid_suite
+from vidsim.gap.cloth_model import CLOTH_EFFECTS, DAMPING_NAMES, DRAG_NAMES, ClothGapError
+
+TWIN_EFFECTS = ("wind", "gravity_tilt", "damping", "drag", "grip_slip", "lens_k1", "motion_blur", "time_offset",
+                "time_rate", "gust")
+
+
+@dataclass
+class ClothSceneConfig:
+    """The suite's synthetic swatch trials and the reduced estimator.
+
+    Attributes:
+        motion: corner motion (:data:`vidsim.reality.cloth.MOTIONS`); n_frames, fps: the clip.
+        twin_resolution: the twin reality's mesh; twin_params: its stiffness and drag (others at
+            the model's fixed mid-range values unless a case's effect sets them).
+        mujoco_resolution: the MuJoCo reality's mesh; settle_s: reality's rest before frame 0.
+        resolution, frame_stride, settle_s_model: the estimator's model (``cloth.model``).
+        estimate: the fit's estimated parameters; grid_levels, budget: the fit (grid over bend,
+            stretch and shear, then annealing).
+        n_background: empty frames before the clip.
+    """
+
+    motion: str = "exp1"
+    n_frames: int = 16  # 0.53 s: the model's trajectories turn chaotic after ~0.3-0.5 s (cloth_diagnose)
+    fps: float = 30.0
+    twin_resolution: int = 12
+    twin_params: dict[str, float] = field(default_factory=lambda: {
+        "bend": 3e-6, "stretch": 300.0, "shear": 40.0, "drag_linear": 0.4, "drag_quad": 0.8})
+    mujoco_resolution: int = 15
+    settle_s: float = 1.0
+    resolution: int = 12
+    frame_stride: int = 1
+    settle_s_model: float = 0.5
+    estimate: list[str] = field(default_factory=lambda: ["bend", "stretch", "shear", "drag_linear", "drag_quad"])
+    grid_levels: int = 3
+    budget: int = 30
+    n_background: int = 5
+
+
+def case_labels(case: dict) -> list[str]:
+    """The effect names a case expects to be named (empty for ``none``/``unexplained``)."""
+    return rigid_suite.case_labels(case, CLOTH_EFFECTS, ClothGapError)
+
+
+def _check_case(case: dict) -> tuple[str, dict]:
+    kind = str(case.get("kind", "twin"))
+    eff = dict(case.get("effects") or {})
+    if kind == "twin":
+        bad = sorted(set(eff) - set(TWIN_EFFECTS))
+        if bad:
+            raise ClothGapError(f"cloth case effects: unknown key(s) {bad}; the twin reality knows {list(TWIN_EFFECTS)}")
+    elif kind == "mujoco":
+        from vidsim.reality.cloth import resolve_effects
+
+        try:
+            resolve_effects({k: {**v, "on": True} for k, v in eff.items()})
+        except (ValueError, TypeError) as e:
+            raise ClothGapError(f"cloth case effects: {e}") from None
+    else:
+        raise ClothGapError(f"cloth case kind = {kind!r}: expected 'twin' or 'mujoco'")
+    return kind, eff
+
+
+def twin_truth_params(scene: ClothSceneConfig, eff: dict) -> ClothParams:
+    """The twin's parameters: ``twin_params`` over the model's fixed mid-range values, then the
+    case's ``damping``, ``drag`` and ``gravity_tilt``."""
+    p = mid_range_params(density=0.2).replace(**{k: float(v) for k, v in scene.twin_params.items()})
+    kw: dict[str, Any] = {}
+    if "damping" in eff:
+        kw.update({n: getattr(p, n) * float(eff["damping"]) for n in DAMPING_NAMES})
+    for k, v in dict(eff.get("drag") or {}).items():
+        if k not in DRAG_NAMES:
+            raise ClothGapError(f"cloth case effects.drag: unknown parameter {k!r}; expected {list(DRAG_NAMES)}")
+        kw[k] = float(v)
+    if "gravity_tilt" in eff:
+        g = dict(eff["gravity_tilt"])
+        th, az = np.deg2rad(float(g.get("degrees", 3.0))), np.deg2rad(float(g.get("azimuth_deg", 0.0)))
+        kw["gravity"] = tuple(9.81 * np.array([np.sin(th) * np.cos(az), np.sin(th) * np.sin(az), -np.cos(th)]))
+    return p.replace(**kw)
+
+
+@dataclass
+class ClothCase:
+    """A filmed case: what the estimator sees (``trial``, ``fit_trial``) and the truth."""
+
+    trial: ClothTrialInput
+    fit_trial: Any
+    truth: dict
+    frames: np.ndarray
+
+
+def _slip(eff: dict, t: np.ndarray, path) -> np.ndarray:
+    gs = dict(eff.get("grip_slip") or {})
+    p = path(t - float(gs.get("lag", 0.0)))
+    ramp = max(float(gs.get("ramp_s", 1.0)), 1e-6)
+    s = np.clip(t / ramp, 0.0, 1.0)
+    p[:, :, 2] -= float(gs.get("drop", 0.0)) * (s * s * (3 - 2 * s))[:, None]
+    return p
+
+
+def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None) -> ClothCase:
+    """Film a case with the cloth scene's true camera and projector (``cloth_cfg``: the ``cloth``
+    config node; default :class:`vidsim.config.cloth.ClothConfig`)."""
+    from omegaconf import OmegaConf
+
+    from vidsim.cloth import simulate
+    from vidsim.clothfit.features import FeatureSettings, extract_features
+    from vidsim.clothfit.film import FilmSettings, film_cloth, swatch_driver, swatch_model_mesh
+    from vidsim.clothfit.objective import Trial
+    from vidsim.config import camera_from_config, projector_from_config
+    from vidsim.config.cloth import ClothConfig
+    from vidsim.reality.cloth import corner_paths, fabric_profile, simulate_swatch, swatch_motion
+    from vidsim.render.projector import Projector
+    from vidsim.video.camera import PinholeCamera
+
+    scene = scene or ClothSceneConfig()
+    cc = cloth_cfg if cloth_cfg is not None else OmegaConf.structured(ClothConfig())
+    kind, eff = _check_case(case)
+    seed = int(case.get("seed", 0))
+    rng = np.random.default_rng(seed)
+    cam = camera_from_config(cc.camera)
+    pc = cc.projector
+    proj = Projector(projector_from_config(pc), period_px=float(pc.period_px), power=float(pc.power),
+                     ambient=float(pc.ambient))
+    n, fps = int(scene.n_frames), float(scene.fps)
+    nominal = np.arange(n) / fps
+    motion = swatch_motion(scene.motion)
+    truth: dict[str, Any] = {"kind": kind, "effects": eff, "seed": seed}
+    k1 = 0.0
+    film = FilmSettings(n_background=int(scene.n_background))
+    if kind == "twin":
+        p = twin_truth_params(scene, eff)
+        truth["params"] = {k: (list(v) if isinstance(v, tuple) else float(v)) for k, v in p.__dict__.items()}
+        tc = nominal * (1.0 + float(eff.get("time_rate", 0.0))) + float(eff.get("time_offset", 0.0))
+        truth["capture_times"] = tc.tolist()
+
+        def path(t):
+            return corner_paths(motion, t)
+
+        def true_path(t):
+            return _slip(eff, t, path) if "grip_slip" in eff else path(t)
+
+        g = np.arange(0, int(np.ceil(tc.max() * fps)) + 3) / fps
+        mesh = swatch_model_mesh(true_path(g[:1])[0], int(scene.twin_resolution), 0.3)
+        drv, t0 = swatch_driver(mesh, g, true_path(g), float(scene.settle_s))
+        wind = np.asarray(eff["wind"], float) if "wind" in eff else None
+        if "gust" in eff:
+            gu = dict(eff["gust"])
+            ts = float(gu.get("start_s", 0.8))
+            before = tc[tc < ts]
+            r1 = simulate(mesh, p, drv, np.r_[before, ts], integrator="fast", t0=t0)
+            if not r1.ok:
+                raise ClothGapError(f"twin reality failed before the gust: {r1.failure}")
+            r2 = simulate(mesh, p, drv, tc[tc >= ts], integrator="fast", t0=ts, x0=r1.positions[-1],
+                          v0=r1.velocities[-1], wind=np.asarray(gu.get("wind", [0.8, 0.8, 0.0]), float))
+            ok, failure = r2.ok, r2.failure
+            V = np.concatenate([r1.positions[:-1], r2.positions])
+        else:
+            res = simulate(mesh, p, drv, tc, integrator="fast", t0=t0, wind=wind)
+            ok, failure, V = res.ok, res.failure, res.positions
+        if not ok:
+            raise ClothGapError(f"twin reality failed: {failure}")
+        F = mesh.triangles
+        measured = path(nominal)
+        truth["corner_paths_true"] = true_path(tc).tolist()
+        density = p.density
+        k1 = float(eff.get("lens_k1", 0.0))
+        if "motion_blur" in eff:
+            mb = dict(eff["motion_blur"])
+            film = FilmSettings(n_background=int(scene.n_background), motion_blur=int(mb.get("samples", 5)),
+                                exposure=float(mb.get("exposure", 0.5)))
+    else:
+        fabric = fabric_profile(str(case.get("fabric", "linen")))
+        run = simulate_swatch(fabric, motion, {k: {**v, "on": True} for k, v in eff.items()}, rng, n_frames=n, fps=fps,
+                              resolution=int(scene.mujoco_resolution), size=0.3, settle=float(scene.settle_s))
+        if not run.ok:
+            raise ClothGapError(f"MuJoCo reality failed: {run.failure}")
+        V, F, measured, density = run.vertices, run.faces, run.corner_paths_measured, fabric["areal_density"]
+        truth.update({"fabric": fabric, "gravity": run.truth["gravity"],
+                      "corner_paths_true": np.asarray(run.truth["corner_paths_true"]).tolist()})
+    lens = PinholeCamera(cam.K, cam.R, cam.t, cam.width, cam.height, cam.dist + np.array([k1, 0, 0, 0, 0]))
+    frames = film_cloth(V, F, lens, proj, rng, film)
+    nb = int(scene.n_background)
+    fs = FeatureSettings(**OmegaConf.to_container(cc.features, resolve=True))
+    feats = extract_features(frames, np.arange(nb), fs)
+    noise = background_noise(frames[:nb])
+    trial = ClothTrialInput(feats.sil, nominal, measured, cam, proj, 0.3, float(density), noise, feats.theta, feats.mask)
+    fit_trial = Trial(f"case{seed}", feats, nominal, measured, cam, proj, 0.3, float(density))
+    return ClothCase(trial, fit_trial, truth, frames)
+
+
+def background_noise(bg: np.ndarray) -> float:
+    """Sensor noise (digital numbers) from the empty frames: std of consecutive differences / sqrt(2)."""
+    b = np.asarray(bg, float)
+    if b.shape[0] < 2:
+        return 0.0
+    return float(np.median([np.std(b[i + 1] - b[i]) for i in range(b.shape[0] - 1)]) / np.sqrt(2.0))
+
+
+def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothParams, dict]:
+    """The project's fit at reduced size: coarse grid over bend/stretch/shear, then annealing.
+
+    Args:
+        fit_trial: the case's :class:`vidsim.clothfit.objective.Trial` (``ClothCase.fit_trial``:
+            features, frame times, measured corners, devices; never the truth).
+    """
+    from omegaconf import OmegaConf
+
+    from vidsim.clothfit.objective import ClothObjective, ModelSettings, space_from_config
+    from vidsim.clothfit.study import fit
+    from vidsim.config.cloth import ClothConfig
+    from vidsim.optim.anneal import AnnealConfig
+
+    c = cloth_cfg if cloth_cfg is not None else OmegaConf.structured(ClothConfig())
+    full = OmegaConf.to_container(c.fit.space, resolve=True)
+    space = space_from_config({k: full[k] for k in scene.estimate})
+    tr = fit_trial.strided(int(scene.frame_stride))
+    obj = ClothObjective([tr], space, model=ModelSettings(resolution=int(scene.resolution),
+                                                          settle_s=float(scene.settle_s_model)))
+    grid = [p for p in ("bend", "stretch", "shear") if p in scene.estimate]
+    r = fit(obj, grid_params=grid, levels=int(scene.grid_levels), budget=int(scene.budget),
+            anneal_cfg=AnnealConfig(evals_per_T=6, step=0.12), seed=0)
+    return obj.params(r.theta, tr.density), {"score": float(r.score), "n_evals": int(r.n_evals)}
+
+
+def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float]]:
+    """Library-parameter values implied by a twin case's effects (scoring only)."""
+    e = truth.get("effects", {})
+    out: dict[str, list[float]] = {}
+    if truth.get("kind") != "twin":
+        return out
+    fixed = mid_range_params(density=0.2)
+    if "wind" in e:
+        out["wind"] = [float(x) for x in e["wind"]]
+    if "gravity_tilt" in e:
+        g = np.asarray(truth["params"]["gravity"], float)
+        out["gravity_tilt"] = [float(g[0] / -g[2]), float(g[1] / -g[2])]
+    if "damping" in e:
+        out["damping"] = [float(np.log(float(e["damping"])))] * 3
+    if "drag" in e:
+        out["air_drag"] = [float(truth["params"][k]) - float(getattr(fixed, k)) for k in DRAG_NAMES
+                           if k not in scene.estimate]
+    if "grip_slip" in e:
+        out["grip_slip"] = [float(e["grip_slip"].get("drop", 0.0))] * 2
+    if "lens_k1" in e:
+        out["lens_k1"] = [float(e["lens_k1"])]
+    if "time_offset" in e:
+        out["time_offset"] = [float(e["time_offset"])]
+    if "time_rate" in e:
+        out["time_rate"] = [float(e["time_rate"])]
+    if "motion_blur" in e:
+        out["motion_blur"] = [float((float(e["motion_blur"].get("exposure", 0.5)) / scene.fps) ** 2)]
+    return out
+
+
+def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneConfig) -> dict:
+    """Named effect correct or not, held-out shrinkage and recovered strength vs truth."""
+    labels = case_labels(case)
+    lab = case.get("label", "none")
+    named = list(diag.named)
+    first = named[0] if named else "none"
+    if not labels:
+        correct = not named
+    elif len(labels) == 1:
+        correct = first == labels[0] or first in CLOTH_EFFECTS[labels[0]].alias
+    else:
+        correct = all(x in named for x in labels)
+    out: dict[str, Any] = {"label": lab if isinstance(lab, str) else "+".join(lab), "named": named,
+                           "named_first": first, "correct": bool(correct), "verdict": diag.verdict,
+                           "gap_present": bool(diag.extra.get("gap_present", False)),
+                           "noise_floor_px": float(diag.floor_test.mean()),
+                           "heldout_before_px": float(diag.gap_per_frame[diag.test].mean())}
+    truths = true_strengths(truth, scene)
+    rec = {}
+    for lbl in labels:
+        key = "+".join(named[: named.index(lbl) + 1]) if lbl in named else lbl
+        r = diag.refits.get(key)
+        if r is None:
+            continue
+        out.setdefault("closure", {})[lbl] = float(r.get("closure_of_remaining", r["heldout_closure"]))
+        out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
+        if lbl in truths and lbl in r["params"]:
+            est = list(map(float, r["params"][lbl]["value"]))
+            tv = truths[lbl]
+            if len(est) == len(tv):
+                rel = float(np.linalg.norm(np.subtract(est, tv)) / max(np.linalg.norm(tv), 1e-12))
+                rec[lbl] = {"estimate": est, "truth": tv, "rel_error": rel}
+    out["recovery"] = rec
+    return out
+
+
+def run_case(case: dict, scene: ClothSceneConfig | None = None, dcfg: ClothDiagnoseConfig | None = None,
+             cloth_cfg=None, progress=None) -> tuple[ClothDiagnosis, dict, ClothCase]:
+    """Film, fit (the project's reduced fit), diagnose blind, score.
+
+    Returns:
+        (diagnosis, score, case).
+    """
+    from omegaconf import OmegaConf
+
+    from vidsim.clothfit.features import FeatureSettings
+    from vidsim.config.cloth import ClothConfig
+
+    scene = scene or ClothSceneConfig()
+    c = cloth_cfg if cloth_cfg is not None else OmegaConf.structured(ClothConfig())
+    t = time.perf_counter()
+    cc = make_case(case, scene, c)
+    t_real = time.perf_counter() - t
+    p_fit, info = fit_case(cc.fit_trial, scene, c)
+    t_fit = time.perf_counter() - t - t_real
+    fs = FeatureSettings(**OmegaConf.to_container(c.features, resolve=True))
+    diag = diagnose_cloth(cc.trial, p_fit, list(scene.estimate), resolution=int(scene.resolution),
+                          frame_stride=int(scene.frame_stride), settle_s=float(scene.settle_s_model), cfg=dcfg,
+                          feature_settings=fs, alpha=float(c.fit.alpha), progress=progress)
+    sc = score_case(case, diag, cc.truth, scene)
+    sc.update({"reality_seconds": t_real, "fit_seconds": t_fit, "diagnose_seconds": diag.seconds,
+               "fit": info, "n_simulations": diag.n_sims})
+    return diag, sc, cc
+
+
+def confusion(scores: dict[str, dict]) -> tuple[list[str], list[str], np.ndarray]:
+    """Confusion matrix: rows true label, columns first named effect."""
+    return rigid_suite.confusion(scores, CLOTH_EFFECTS)
