@@ -44,12 +44,12 @@ def case(tmp_path_factory):
     return root, th, body
 
 
-def _run(root: Path, *extra: str) -> subprocess.CompletedProcess:
+def _run(root: Path, *extra: str, out: str = "t", walkers: int = 28) -> subprocess.CompletedProcess:
     args = [sys.executable, "-m", "vidsim.cli.posterior_rigid", f"paths.results={root}",
             f"paths.footage={root}/footage/rigid_t", f"posterior.paths.fit={root}/rigid/fit.yaml",
-            f"posterior.paths.masks={root}/rigid/masks.npz", f"paths.out={root}/posterior/rigid/t",
+            f"posterior.paths.masks={root}/rigid/masks.npz", f"paths.out={root}/posterior/rigid/{out}",
             "posterior.rigid.n_design=160", "posterior.rigid.design_iters=1", "posterior.rigid.chunk=50",
-            "posterior.rigid.n_walkers=28", "posterior.rigid.min_steps=100", "posterior.rigid.max_steps=100",
+            f"posterior.rigid.n_walkers={walkers}", "posterior.rigid.min_steps=100", "posterior.rigid.max_steps=100",
             "posterior.draws_logged=3", *extra]
     return subprocess.run(args, capture_output=True, text=True, env=ENV, timeout=300)
 
@@ -81,3 +81,27 @@ def test_stage_bad_input_is_one_line(case) -> None:
     root, _, _ = case
     r = _run(root, "posterior.paths.fit=")
     assert r.returncode == 2 and "posterior.paths.fit" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_stage_with_drag_nuisance(case) -> None:
+    """``posterior.rigid.discrepancy=[quadratic_drag]``: the drag coefficient is sampled inside its prior
+    and reported after the 14 parameters (no drag in this reality: its interval starts near 0)."""
+    root, th, body = case
+    r = _run(root, "posterior.rigid.discrepancy=[quadratic_drag]", out="d", walkers=30)
+    assert r.returncode == 0, r.stderr[-2000:]
+    out = root / "posterior" / "rigid" / "d"
+    rows = list(csv.DictReader((out / "summary.csv").open()))
+    assert len(rows) == 15 and rows[-1]["name"] == "quadratic_drag" and rows[-1]["unit"] == "kg/m^3"
+    assert 0.0 <= float(rows[-1]["q05"]) <= float(rows[-1]["q95"]) <= 5.0
+    d = yaml.safe_load((out / "posterior.yaml").read_text())
+    assert d["diagnostics"]["discrepancy"]["effects"] == ["quadratic_drag"]
+    assert d["diagnostics"]["discrepancy"]["bounds"] == [[0.0, 5.0]]
+
+
+@pytest.mark.parametrize("arg, what", [("posterior.rigid.discrepancy=[quadratic_drgg]", "quadratic_drgg"),
+                                       ("posterior.rigid.discrepancy_upper={angular_drag: 1.0}", "angular_drag")])
+def test_stage_bad_discrepancy_is_one_line(case, arg: str, what: str) -> None:
+    root, _, _ = case
+    r = _run(root, arg)
+    assert r.returncode == 2 and "posterior.rigid.discrepancy" in r.stderr and what in r.stderr, r.stderr[-500:]
+    assert "Traceback" not in r.stderr

@@ -29,10 +29,9 @@ from vidsim.io.footage import read_calibration, read_footage
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.posterior.figures import corner_figure, correlation_figure
-from vidsim.posterior.rigid import FrameLoss, NoiseConfig, RigidPriorConfig, rigid_posterior
-from vidsim.posterior.sampler import SamplerConfig
+from vidsim.posterior.rigid import DiscrepancyConfig, FrameLoss, NoiseConfig, RigidPriorConfig, rigid_posterior
+from vidsim.posterior.sampler import PosteriorError, SamplerConfig
 from vidsim.report.figures import save_figure
-from vidsim.rigid.dynamics import simulate
 from vidsim.rigid.silhouette import render_coverage
 
 
@@ -53,6 +52,12 @@ def run(cfg: DictConfig) -> None:
             raise ConfigError(f"posterior.paths.{key} is empty: give the rigid stage's {key} file")
     if not cfg.paths.footage:
         raise ConfigError("paths.footage is empty: give the footage folder of the throw (meta.yaml, calibration)")
+    disc = DiscrepancyConfig(effects=tuple(rc.discrepancy), upper=dict(rc.discrepancy_upper),
+                             refit_nfev=int(rc.discrepancy_refit_nfev))
+    try:
+        disc.validate()
+    except PosteriorError as e:
+        raise ConfigError(f"posterior.rigid.{e}") from None
     out = Path(cfg.paths.out)
     fit, body = read_fit(pc.paths.fit)
     masks, times = read_masks(pc.paths.masks)
@@ -84,7 +89,7 @@ def run(cfg: DictConfig) -> None:
 
         post = rigid_posterior(obs, fit.times, cam, body, fit.params, fit.q0, fit.t0, alts, noise, prior, scfg,
                                str(tmp / "chain.npz"), on_chunk, rc.distinct_deg, rc.multimodal_ratio,
-                               gravity=gravity)
+                               gravity=gravity, discrepancy=disc)
         diag = post.diagnostics()
         # per frame: footage, observed silhouette, fraction of posterior draws covering each pixel
         S = post.samples(natural=False)
@@ -92,14 +97,14 @@ def run(cfg: DictConfig) -> None:
         draws = S[rng.choice(len(S), size=min(int(pc.draws_logged), len(S)), replace=False)]
         cover = np.zeros(obs.shape, np.float32)
         n_ok = 0
+        fl = FrameLoss(body, cam, fit.times, obs, fit.t0, post.q_base, gravity=gravity, effects=disc.effects)
         for p in draws:
-            tr = simulate(p, post.q_base, body.inertia, fit.times, fit.t0, sensitivities=False, g=gravity)
-            if tr.ok:
-                cover += render_coverage(tr.states[:, 0:3], tr.states[:, 3:7], body.box_vertices(), cam) > 0.5
+            tq = fl.trajectory(p)
+            if tq is not None:
+                cover += render_coverage(tq[0], tq[1], body.box_vertices(), cam) > 0.5
                 n_ok += 1
         cover /= max(n_ok, 1)
         e_mode = post.noise.loss_min
-        fl = FrameLoss(body, cam, fit.times, obs, fit.t0, post.q_base, gravity=gravity)
         e_frames = fl(post.noise.center)
         for k, f in enumerate(fit.frames):
             lg.set_frame(int(f))

@@ -17,6 +17,13 @@ class PosteriorRigidConfig:
         n_design: local-design evaluations per refinement of the noise calibration.
         design_iters: refinements of the design to the posterior's scale.
         hac_bandwidth: Newey-West lag window, frames (0: a quarter of the fitted frames).
+        discrepancy: structured model discrepancy: effects of the gap library sampled with the 14
+            parameters as nuisance parameters, each with a uniform prior from 0 (off) to its upper
+            bound (``quadratic_drag`` 5 kg/m^3, ``linear_drag`` 1 1/s, ``angular_drag`` 1 1/s;
+            :data:`vidsim.posterior.rigid.DISCREPANCY_UPPER`); the 14 parameters' intervals are then
+            marginal over them. Empty: none. An unknown name is an error.
+        discrepancy_upper: prior upper bounds overriding the defaults, e.g. ``{quadratic_drag: 2.0}``.
+        discrepancy_refit_nfev: least-squares budget of the refit of the mode with the nuisance free.
         prior_position_m: prior half-width around the fitted position, m.
         prior_rotation_deg: largest prior rotation away from the fitted orientation, degrees.
         prior_velocity_mps: prior half-width around the fitted velocity, m/s.
@@ -35,6 +42,9 @@ class PosteriorRigidConfig:
     n_design: int = 400
     design_iters: int = 2
     hac_bandwidth: int = 0
+    discrepancy: list[str] = field(default_factory=list)
+    discrepancy_upper: dict[str, float] = field(default_factory=dict)
+    discrepancy_refit_nfev: int = 15
     prior_position_m: float = 0.5
     prior_rotation_deg: float = 45.0
     prior_velocity_mps: float = 2.0

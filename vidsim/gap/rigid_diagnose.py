@@ -223,8 +223,34 @@ class Problem:
         return d.reshape(len(fr), -1).sum(1) / self.model.scale ** 2
 
 
-def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15) -> tuple[np.ndarray, dict]:
+def residual_region(model: RigidGapModel, masks: np.ndarray, theta: np.ndarray, roi_px: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Observed coverage and the fixed region of interest of a :class:`Problem`.
+
+    Args:
+        model: the model (its ``times`` are the frames of ``masks``).
+        masks: (T, H, W) bool observed silhouettes at full resolution.
+        theta: parameters whose rendering, with the observation, defines the region.
+        roi_px: pixels (at the model's scale) within this distance of either silhouette are in the region.
+
+    Returns:
+        obs (T, h, w) area-averaged coverage at the model's scale and roi (T, h, w) bool.
+    """
+    h, w = model.cam.height, model.cam.width
+    obs = np.stack([cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) for m in masks])
+    a0, ok0 = model.render(theta)
+    if not ok0:
+        raise GapError("fit: the fitted throw diverges or passes behind the camera; nothing to diagnose")
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * roi_px + 1, 2 * roi_px + 1))
+    roi = np.stack([cv2.dilate(((o > 0.01) | (a > 0.01)).astype(np.uint8), ker) > 0 for o, a in zip(obs, a0)])
+    return obs, roi
+
+
+def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15, upper: np.ndarray | None = None
+          ) -> tuple[np.ndarray, dict]:
     """Least-squares refit of all parameters of ``prob.model`` on ``prob.frames``.
+
+    ``upper`` (n_params,): optional upper bounds (``inf``: none; the lower ones are the model's).
 
     Returns:
         theta and info ``{cost, nfev, ok, cov}`` where ``cov`` is the Gauss-Newton covariance of
@@ -236,6 +262,8 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15) -> tuple[np.nda
     # a parameter starting on its bound cannot move under the trust-region's bound scaling
     # (Coleman-Li): start bounded ones a quarter of their typical size inside
     x0 = np.where(np.isfinite(lo), np.maximum(x0, lo + 0.25), x0)
+    hi = np.full_like(lo, np.inf) if upper is None else (np.asarray(upper, float) - theta0) / xs
+    x0 = np.minimum(x0, hi - 0.25)
 
     def fun(x: np.ndarray) -> np.ndarray:
         return prob.residual(theta0 + x * xs)
@@ -243,7 +271,7 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15) -> tuple[np.nda
     def jac(x: np.ndarray) -> np.ndarray:
         return prob.jacobian(theta0 + x * xs) * xs
 
-    sol = least_squares(fun, x0, jac=jac, bounds=(lo, np.full_like(lo, np.inf)), method="trf",
+    sol = least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf",
                         max_nfev=max_nfev, x_scale=1.0)
     theta = theta0 + sol.x * xs
     J = sol.jac
@@ -519,13 +547,7 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     qb = np.asarray(fit["quaternion"], float)
     t0 = float(fit["t0"])
     base = RigidGapModel(body, cam, ft, t0, qb, (), cfg.scale, cfg.ramp)
-    h, w = base.cam.height, base.cam.width
-    obs = np.stack([cv2.resize(m.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA) for m in masks[frames]])
-    a0, ok0 = base.render(p0)
-    if not ok0:
-        raise GapError("fit: the fitted throw diverges or passes behind the camera; nothing to diagnose")
-    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * cfg.roi_px + 1, 2 * cfg.roi_px + 1))
-    roi = np.stack([cv2.dilate(((o > 0.01) | (a > 0.01)).astype(np.uint8), ker) > 0 for o, a in zip(obs, a0)])
+    obs, roi = residual_region(base, masks[frames], p0, cfg.roi_px)
 
     def problem(effects: tuple[str, ...], fr: np.ndarray) -> Problem:
         return Problem(RigidGapModel(body, cam, ft, t0, qb, effects, cfg.scale, cfg.ramp), obs, roi, fr)

@@ -197,11 +197,12 @@ class RigidGapModel:
         scale: image scale of the rendering (0.5 renders at half resolution).
         ramp: anti-aliasing ramp of the soft silhouette, pixels at this scale.
         hmax: RK4 step bound, seconds.
+        gravity: known gravity magnitude (before ``gravity_scale``), m/s^2.
     """
 
     def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, t0: float, q_base: np.ndarray,
                  effects: tuple[str, ...] | list[str] = (), scale: float = 0.5, ramp: float = 1.0,
-                 hmax: float = 1.0 / 120.0) -> None:
+                 hmax: float = 1.0 / 120.0, gravity: float = G_EARTH) -> None:
         self.body = body
         self.cam_full = cam
         self.cam = cam if scale == 1.0 else cam.scaled(scale)
@@ -213,6 +214,7 @@ class RigidGapModel:
         self.scale = float(scale)
         self.ramp = float(ramp)
         self.hmax = float(hmax)
+        self.gravity = float(gravity)
         self.effects = tuple(effects)
         self.slices: dict[str, slice] = {}
         k = 14
@@ -259,8 +261,12 @@ class RigidGapModel:
         t = self.t0 + (self.times - self.t0) * (1.0 + float(self.get(theta, "time_rate")[0]))
         return t + float(self.get(theta, "time_offset")[0]) + self.get(theta, "time_jitter")
 
-    def poses(self, theta: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    def poses(self, theta: np.ndarray, times: np.ndarray, q_base: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, bool]:
         """Rendered body-frame poses at true times ``times`` (any shape, seconds).
+
+        ``q_base`` (4,) replaces the model's base orientation for this call (e.g. to score a
+        distinct alternative solution of the fit).
 
         Returns:
             X (..., 3) positions, Q (..., 4) quaternions of the body frame, and an ok flag.
@@ -271,7 +277,7 @@ class RigidGapModel:
         tt = np.ascontiguousarray(np.ravel(times), float)
         tq = np.maximum(tt, self.t0)
         d = self.get(theta, "com_offset")
-        q0, _ = initial_state(p, self.q_base)
+        q0, _ = initial_state(p, self.q_base if q_base is None else np.asarray(q_base, float))
         R0 = quat_to_rot(q0[3:7])
         if np.any(d):
             # p describes the body-frame origin (the stated centre of mass); the true centre moves
@@ -279,7 +285,7 @@ class RigidGapModel:
             q0 = q0.copy()
             q0[0:3] += off
             q0[7:10] += np.cross(p[9:12], off)
-        g = gravity_vector(p[12], p[13], G_EARTH * (1.0 + float(self.get(theta, "gravity_scale")[0])))
+        g = gravity_vector(p[12], p[13], self.gravity * (1.0 + float(self.get(theta, "gravity_scale")[0])))
         states, ok = _integrate_ext(q0, self.t0, tq, self.hmax, g, self.body.inertia, self.Iinv,
                                     float(self.get(theta, "linear_drag")[0]),
                                     float(self.get(theta, "quadratic_drag")[0]),

@@ -30,6 +30,14 @@ replaces ``J``, which widens the posterior by what the temporally structured mis
 ``sandwich_holdout`` compares the modes of the first and second half of the frames (held out from
 each other) and inflates the posterior variance by their chi-square disagreement per parameter.
 
+Structured discrepancy (``discrepancy: [quadratic_drag]``): the effects of the gap library
+(:mod:`vidsim.gap.rigid_model`, zero = off) named there are sampled with the 14 parameters as
+nuisance parameters, with a uniform prior on ``[0, upper]`` (:data:`DISCREPANCY_UPPER`), so that a
+missing force is absorbed by its own coefficient instead of by the initial state. The mode is first
+refitted with the nuisance free (the gap package's least-squares refit, from the drag-free fit),
+then the noise scale is calibrated in the extended space as above; the reported intervals of the 14
+parameters are marginal over the nuisance.
+
 Multimodality: a distinct alternative solution of the fit (e.g. the flipped orientation) whose
 posterior density is within ``multimodal_ratio`` of the mode, or walkers whose orientations split
 by more than ``distinct_deg``, raise the ``multimodal`` flag.
@@ -42,6 +50,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from vidsim.gap.rigid_diagnose import Problem, refit, residual_region
+from vidsim.gap.rigid_model import RIGID_EFFECTS, RigidGapModel
 from vidsim.posterior.sampler import Chain, PosteriorError, SamplerConfig, correlation, sample, summarize
 from vidsim.rigid.body import BoxBody
 from vidsim.rigid.dynamics import (G_EARTH, N_PARAM, PARAM_NAMES, quat_exp, quat_mul, quat_to_rot, rot_to_rotvec,
@@ -60,6 +70,17 @@ DESIGN_SCALE0 = np.array([0.002] * 3 + [0.005] * 3 + [0.01] * 3 + [0.05] * 3 + [
 """First local-design step per parameter (m, rad, m/s, rad/s, rad), refined to the posterior's scale."""
 
 NOISE_MODELS = ("sandwich", "sandwich_hac", "sandwich_holdout", "iid_pixel")
+
+DISCREPANCY_UPPER: dict[str, float] = {"quadratic_drag": 5.0, "linear_drag": 1.0, "angular_drag": 1.0}
+"""Effects that may be sampled as nuisance parameters and the upper end of their uniform prior
+(the lower end is 0: the effect off). ``quadratic_drag`` c2 = rho C / 2 (kg/m^3): air at 1.2 kg/m^3
+and a face-pressure coefficient C <= 8, four or more times a bluff body's (~1-2; the bound leaves room
+for the benchmark's reality with 3 x physical air drag, whose fitted c2 is ~2); ``linear_drag``
+c1 (1/s): a speed decay of at most 1/e per second (far above air on a hand-sized body);
+``angular_drag`` k (1/s): spin decaying by at most 1/e per second."""
+
+DISCREPANCY_DESIGN0 = {"quadratic_drag": 0.02, "linear_drag": 0.005, "angular_drag": 0.005}
+"""First local-design step of each nuisance parameter (its units), as :data:`DESIGN_SCALE0`."""
 
 
 @dataclass
@@ -117,6 +138,43 @@ class NoiseConfig:
                                  f"{self.design_iters}, {self.design_width}, {self.hac_bandwidth}")
 
 
+@dataclass
+class DiscrepancyConfig:
+    """Structured model discrepancy: gap-library effects sampled as nuisance parameters.
+
+    Attributes:
+        effects: names from :data:`DISCREPANCY_UPPER` (empty: none, the 14-parameter model).
+        upper: prior upper bounds overriding :data:`DISCREPANCY_UPPER` (same names, effect units).
+        refit_nfev: budget of the least-squares refit of the mode with the nuisance free.
+        refit_scale: image scale of that refit (0.5: half resolution).
+    """
+
+    effects: tuple[str, ...] = ()
+    upper: dict[str, float] = field(default_factory=dict)
+    refit_nfev: int = 15
+    refit_scale: float = 0.5
+
+    def validate(self) -> None:
+        for e in self.effects:
+            if e not in DISCREPANCY_UPPER:
+                raise PosteriorError(f"discrepancy: unknown effect {e!r}; expected a subset of "
+                                     f"{sorted(DISCREPANCY_UPPER)}")
+        if len(set(self.effects)) != len(self.effects):
+            raise PosteriorError(f"discrepancy: {list(self.effects)} names an effect twice")
+        for k, v in self.upper.items():
+            if k not in self.effects:
+                raise PosteriorError(f"discrepancy_upper: {k!r} is not in discrepancy {list(self.effects)}")
+            if not (np.isfinite(v) and v > 0):
+                raise PosteriorError(f"discrepancy_upper.{k} = {v}: must be a finite bound > 0")
+        if self.refit_nfev < 1 or not (0 < self.refit_scale <= 1):
+            raise PosteriorError(f"discrepancy: refit_nfev >= 1 and 0 < refit_scale <= 1 expected; got "
+                                 f"{self.refit_nfev}, {self.refit_scale}")
+
+    def bounds(self) -> np.ndarray:
+        """(n, 2) prior interval ``[0, upper]`` of each nuisance parameter, effect units."""
+        return np.array([[0.0, float(self.upper.get(e, DISCREPANCY_UPPER[e]))] for e in self.effects]).reshape(-1, 2)
+
+
 # ----------------------------------------------------------------------------- likelihood
 class FrameLoss:
     """Per-frame silhouette mismatch (T,) of the fit's parameter vector (full resolution pixels).
@@ -126,34 +184,90 @@ class FrameLoss:
         times: (T,) fitted frame times, s; masks: (T, H, W) bool observed silhouettes.
         t0: time of the initial state, s; q_base: (4,) base orientation of the parameters.
         hmax: RK4 step bound, s; gravity: known magnitude, m/s^2.
+        effects: gap-library effects appended to the parameter vector (nuisance parameters, in
+            this order, one per effect); empty: the 14-parameter free flight.
     """
 
     def __init__(self, body: BoxBody, cam: PinholeCamera, times: np.ndarray, masks: np.ndarray, t0: float,
-                 q_base: np.ndarray, hmax: float = 1.0 / 60.0, gravity: float = G_EARTH) -> None:
+                 q_base: np.ndarray, hmax: float = 1.0 / 60.0, gravity: float = G_EARTH,
+                 effects: tuple[str, ...] = ()) -> None:
         self.gravity = float(gravity)
         self.obj = SilhouetteObjective(body, cam, times, masks, t0, 1.0, 0.0, 1.0, 20.0, hmax)
         self.q_base = np.asarray(q_base, float)
         self.n_pixels = int(np.asarray(masks).size)
         self.n_evals = 0
+        self.effects = tuple(effects)
+        self.model = (RigidGapModel(body, cam, self.obj.times, t0, self.q_base, self.effects, 1.0, 1.0, hmax, gravity)
+                      if self.effects else None)
+        if self.model is not None and self.model.n_params != N_PARAM + len(self.effects):
+            raise PosteriorError(f"discrepancy effects {self.effects}: one parameter per effect expected")
 
     @property
     def n_frames(self) -> int:
         return len(self.obj.times)
 
+    @property
+    def n_params(self) -> int:
+        """14 + the number of nuisance parameters."""
+        return N_PARAM + len(self.effects)
+
+    def trajectory(self, p: np.ndarray, q_base: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """Positions (T, 3) and quaternions (T, 4) at the frame times, or None when the simulation fails."""
+        o = self.obj
+        qb = self.q_base if q_base is None else q_base
+        p = np.asarray(p, float)
+        if self.model is None:
+            tr = simulate(p, qb, o.body.inertia, o.times, o.t0, o.hmax, sensitivities=False, g=self.gravity)
+            if not tr.ok:
+                return None
+            return tr.states[:, 0:3], tr.states[:, 3:7]
+        X, Q, ok = self.model.poses(p, o.times, qb)
+        return (X, Q) if ok else None
+
     def __call__(self, p: np.ndarray, q_base: np.ndarray | None = None) -> np.ndarray | None:
         """(T,) mismatches in pixels, or None when the simulation fails / leaves the view."""
         o = self.obj
         self.n_evals += 1
-        qb = self.q_base if q_base is None else q_base
-        tr = simulate(np.asarray(p, float), qb, o.body.inertia, o.times, o.t0, o.hmax, sensitivities=False,
-                      g=self.gravity)
-        if not tr.ok:
+        tq = self.trajectory(p, q_base)
+        if tq is None:
             return None
-        X, Q = tr.states[:, 0:3], tr.states[:, 3:7]
+        X, Q = tq
         if np.any((X @ o.cam.R.T + o.cam.t)[:, 2] < 0.05):
             return None
         c, _ = sequence_costs(X, Q, o.corners, o.cam, o.W, o.base, o.ramp, 0.5, False)
         return c if np.all(np.isfinite(c)) else None
+
+
+def refit_discrepancy(masks: np.ndarray, loss: FrameLoss, p0: np.ndarray, cfg: DiscrepancyConfig,
+                      roi_px: int = 6) -> np.ndarray:
+    """Mode of the extended model: all parameters refitted with the nuisance free, from ``p0``.
+
+    The gap package's bounded least-squares refit (:func:`vidsim.gap.rigid_diagnose.refit`, soft
+    silhouettes at ``cfg.refit_scale``) on all frames, the nuisance inside its prior interval.
+    Used because a withheld drag biases the drag-free fit by many posterior
+    standard deviations, further than the local designs of :func:`calibrate_noise` travel.
+
+    Args:
+        masks: (T, H, W) bool observed silhouettes of the fitted frames.
+        loss: the extended per-frame loss (its effects are the nuisance).
+        p0: (14,) or (14 + n,) starting point (nuisance 0 when only 14 are given).
+        cfg: discrepancy settings; roi_px: residual region around both silhouettes, pixels at scale.
+
+    Returns:
+        (14 + n,) refitted parameters (the refit's result is kept only when it lowers the loss).
+    """
+    o = loss.obj
+    p0 = np.asarray(p0, float)
+    theta0 = np.r_[p0, np.zeros(loss.n_params - p0.size)]
+    model = RigidGapModel(o.body, o.cam, o.times, o.t0, loss.q_base, loss.effects, cfg.refit_scale, 1.0, o.hmax,
+                          loss.gravity)
+    obs, roi = residual_region(model, masks, theta0, roi_px)
+    upper = np.r_[np.full(N_PARAM, np.inf), cfg.bounds()[:, 1]]
+    theta, _ = refit(Problem(model, obs, roi, np.arange(len(o.times))), theta0, cfg.refit_nfev, upper)
+    e0, e1 = loss(theta0), loss(theta)
+    if e1 is None or (e0 is not None and np.sum(e1) >= np.sum(e0)):
+        return theta0
+    return theta
 
 
 @dataclass
@@ -162,12 +276,13 @@ class NoiseModel:
 
     Attributes:
         model: noise model name; w: learning rate, 1/pixel.
-        center: (14,) minimiser of the fitted quadratic surface (the mode used by the sampler).
+        center: (D,) minimiser of the fitted quadratic surface (the mode used by the sampler); D is 14
+            plus the nuisance parameters (the same below).
         loss_min: total mismatch at ``center``, pixels.
-        H: (14, 14) Hessian of the total mismatch, pixels per parameter unit squared.
-        J: (14, 14) score covariance used (iid or HAC).
-        cov: (14, 14) approximate posterior covariance ``(w H)^-1``.
-        scale: (14,) final design step.
+        H: (D, D) Hessian of the total mismatch, pixels per parameter unit squared.
+        J: (D, D) score covariance used (iid or HAC).
+        cov: (D, D) approximate posterior covariance ``(w H)^-1``.
+        scale: (D,) final design step.
         bandwidth: HAC lag window used (0: none).
         r2: coefficient of determination of the total-loss surface on its design.
         n_evals: evaluations spent.
@@ -256,7 +371,7 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
 
     Args:
         loss: per-frame mismatch.
-        p0: (14,) the optimiser's estimate.
+        p0: (14 + n,) the optimiser's estimate (n nuisance parameters of ``loss.effects``).
         cfg: noise settings; rng: design randomness (seeded by the caller).
 
     Returns:
@@ -266,12 +381,16 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
     cfg.validate()
     rng = rng or np.random.default_rng(0)
     p0 = np.asarray(p0, float)
-    D = N_PARAM
+    effects = tuple(getattr(loss, "effects", ()))  # any per-frame loss of (14 + nuisance) parameters
+    D = N_PARAM + len(effects)
+    if p0.shape != (D,):
+        raise PosteriorError(f"p0 must have {D} entries (14 + the nuisance {list(effects)}), got {p0.shape}")
     T = loss.n_frames
     E0 = loss(p0)
     if E0 is None:
         raise PosteriorError("the fitted parameters do not simulate (the fit is invalid): cannot build a posterior")
-    A = np.diag(DESIGN_SCALE0 * 0.1)  # design map dp = A z; whitened by the fitted curvature below
+    # design map dp = A z; whitened by the fitted curvature below
+    A = np.diag(np.r_[DESIGN_SCALE0, [DISCREPANCY_DESIGN0[e] for e in effects]] * 0.1)
     n_evals = 1
     center = p0.copy()
     rise0 = max(float(np.sum(E0)) * 0.02, float(T))  # first whitened design: ~2 % loss increase
@@ -285,8 +404,9 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
             if e is not None:
                 rows.append(e)
                 ok.append(zi)
-        if len(ok) < 150:
-            raise PosteriorError(f"local design: only {len(ok)} of {cfg.n_design} points simulate")
+        need = max(150, (D + 1) * (D + 2) // 2 + 16)  # quadratic surface: (D + 1)(D + 2) / 2 coefficients
+        if len(ok) < need:
+            raise PosteriorError(f"local design: only {len(ok)} of {cfg.n_design} points simulate (need {need})")
         z = np.asarray(ok)
         E = np.asarray(rows)
         F = _quad_features(z)
@@ -346,17 +466,27 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
 
 # ----------------------------------------------------------------------------- posterior
 class RigidLogPosterior:
-    """``log prior + (-w (L(theta) - L*))``; ``-inf`` outside the prior or for a failed simulation."""
+    """``log prior + (-w (L(theta) - L*))``; ``-inf`` outside the prior or for a failed simulation.
 
-    def __init__(self, loss: FrameLoss, noise: NoiseModel, p_fit: np.ndarray, prior: RigidPriorConfig) -> None:
+    ``bounds`` (n, 2): the uniform prior interval of each nuisance parameter (after the 14).
+    """
+
+    def __init__(self, loss: FrameLoss, noise: NoiseModel, p_fit: np.ndarray, prior: RigidPriorConfig,
+                 bounds: np.ndarray | None = None) -> None:
         self.loss = loss
         self.noise = noise
         self.p_fit = np.asarray(p_fit, float)
         self.prior = prior
+        self.bounds = np.zeros((0, 2)) if bounds is None else np.asarray(bounds, float).reshape(-1, 2)
+        if N_PARAM + len(self.bounds) != loss.n_params:
+            raise PosteriorError(f"{len(self.bounds)} nuisance bounds for the loss's {loss.n_params - N_PARAM} "
+                                 "nuisance parameters")
 
     def in_prior(self, p: np.ndarray) -> bool:
-        pr, d = self.prior, p - self.p_fit
-        return bool(np.all(np.abs(d[0:3]) <= pr.position_m)
+        pr, d = self.prior, p[:N_PARAM] - self.p_fit
+        nu = p[N_PARAM:]
+        return bool(np.all((nu >= self.bounds[:, 0]) & (nu <= self.bounds[:, 1]))
+                    and np.all(np.abs(d[0:3]) <= pr.position_m)
                     and np.degrees(np.linalg.norm(p[3:6])) <= pr.rotation_deg
                     and np.all(np.abs(d[6:9]) <= pr.velocity_mps)
                     and np.all(np.abs(d[9:12]) <= pr.omega_radps)
@@ -371,8 +501,33 @@ class RigidLogPosterior:
         return -self.noise.w * (float(np.sum(e)) - self.noise.loss_min)
 
 
+def laplace_samples(noise: NoiseModel, bounds: np.ndarray | None = None, n: int = 20000,
+                    rng: np.random.Generator | None = None) -> np.ndarray:
+    """(n, D) draws of the Laplace approximation ``N(center, (w H)^-1)`` truncated to the nuisance prior.
+
+    The nuisance parameters (the last ``len(bounds)`` coordinates) are kept inside their interval
+    by rejection, so the 14 parameters' draws are their marginal under the truncated Gaussian (a
+    mode on the bound ``0`` of a drag coefficient keeps only the physical half). Without bounds:
+    the plain Gaussian. Raises :class:`PosteriorError` when almost nothing (< 0.1 %) is inside.
+    """
+    rng = rng or np.random.default_rng(0)
+    b = np.zeros((0, 2)) if bounds is None else np.asarray(bounds, float).reshape(-1, 2)
+    D = noise.center.size
+    L = np.linalg.cholesky(noise.cov + 1e-300 * np.eye(D))
+    out, n_drawn = [], 0
+    while sum(len(x) for x in out) < n:
+        Z = noise.center + rng.normal(size=(n, D)) @ L.T
+        n_drawn += n
+        nu = Z[:, D - len(b):]
+        keep = np.all((nu >= b[:, 0]) & (nu <= b[:, 1]), axis=1) if len(b) else np.ones(n, bool)
+        out.append(Z[keep])
+        if n_drawn >= 20 * n and sum(len(x) for x in out) < 0.001 * n_drawn:
+            raise PosteriorError("the Laplace approximation puts < 0.1 % of its mass inside the nuisance prior")
+    return np.concatenate(out)[:n]
+
+
 def to_natural(P: np.ndarray) -> np.ndarray:
-    """Parameters (..., 14) with angles converted to degrees (rotation offset, tilt, roll)."""
+    """Parameters (..., 14 [+ nuisance]) with angles converted to degrees (rotation offset, tilt, roll)."""
     out = np.array(P, float, copy=True)
     out[..., list(ANGLE_IDX)] = np.degrees(out[..., list(ANGLE_IDX)])
     return out
@@ -396,16 +551,17 @@ class RigidPosterior:
     """Result of :func:`rigid_posterior`.
 
     Attributes:
-        names: parameter names; units: their (natural) units.
+        names: parameter names (the 14, then the nuisance effects); units: their (natural) units.
         p_fit: (14,) the optimiser's estimate; q_base: (4,) its orientation (rotation offsets refer to it).
         noise: the calibrated noise model.
         chain: the sampled chain (parameter units: radians).
         summary: per-parameter rows in natural units (angles in degrees) with point estimate,
             5/50/95 % quantiles, mean and sd.
-        corr: (14, 14) posterior correlation matrix.
+        corr: (D, D) posterior correlation matrix (D = 14 + nuisance).
         multimodal: True when a distinct solution is nearly as probable or the walkers split.
         multimodal_reasons: what raised the flag.
         seconds: total wall time (noise calibration + sampling).
+        discrepancy: the nuisance effects, their prior bounds and the refitted mode's values.
     """
 
     names: list[str]
@@ -419,9 +575,10 @@ class RigidPosterior:
     multimodal: bool
     multimodal_reasons: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    discrepancy: dict = field(default_factory=dict)
 
     def samples(self, natural: bool = True) -> np.ndarray:
-        """(N, 14) post-burn-in samples (angles in degrees when ``natural``)."""
+        """(N, D) post-burn-in samples (angles in degrees when ``natural``; nuisance last)."""
         S = self.chain.samples()
         return to_natural(S) if natural else S
 
@@ -433,7 +590,7 @@ class RigidPosterior:
                 "ess": float(c.ess), "sampling_seconds": float(c.seconds), "seconds": float(self.seconds),
                 "ess_per_minute": float(c.ess / max(self.seconds, 1e-9) * 60.0),
                 "multimodal": bool(self.multimodal), "multimodal_reasons": list(self.multimodal_reasons),
-                "noise": self.noise.to_dict()}
+                "noise": self.noise.to_dict(), "discrepancy": dict(self.discrepancy)}
 
 
 def _orientation_split(samples: np.ndarray, distinct_deg: float, frac: float) -> float:
@@ -448,7 +605,8 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
                     noise: NoiseConfig | None = None, prior: RigidPriorConfig | None = None,
                     sampler: SamplerConfig | None = None, chain_path: str | None = None,
                     progress=None, distinct_deg: float = 10.0, multimodal_ratio: float = 0.01,
-                    hmax: float = 1.0 / 60.0, gravity: float = G_EARTH) -> RigidPosterior:
+                    hmax: float = 1.0 / 60.0, gravity: float = G_EARTH,
+                    discrepancy: DiscrepancyConfig | None = None) -> RigidPosterior:
     """Sample the posterior of a fitted throw.
 
     Args:
@@ -465,15 +623,19 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
         distinct_deg: orientation split that counts as a second mode, degrees.
         multimodal_ratio: an alternative whose density is above this fraction of the mode's is a mode.
         hmax: RK4 step bound, s; gravity: known gravity magnitude, m/s^2.
+        discrepancy: nuisance effects sampled with the 14 parameters (default: none).
 
     Returns:
-        :class:`RigidPosterior`.
+        :class:`RigidPosterior` (with a discrepancy, the 14 parameters' summaries are marginal over
+        the nuisance, whose own rows follow them).
     """
     t_start = time.perf_counter()
     noise = noise or NoiseConfig()
     prior = prior or RigidPriorConfig()
     sampler = sampler or SamplerConfig()
+    disc = discrepancy or DiscrepancyConfig()
     prior.validate()
+    disc.validate()
     masks = np.asarray(masks, bool)
     times = np.asarray(times, float)
     if masks.ndim != 3 or masks.shape[0] != times.shape[0] or masks.shape[0] < 5:
@@ -489,21 +651,31 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
         p_fit = p_fit.copy()
         p_fit[3:6] = 0.0
     q_base = q_base / np.linalg.norm(q_base)
-    loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax, gravity)
-    nm = calibrate_noise(loss, p_fit, noise, np.random.default_rng(sampler.seed))
-    logp = RigidLogPosterior(loss, nm, p_fit, prior)
-    ch = sample(logp, nm.center, nm.cov, sampler, chain_path, progress)
+    loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax, gravity, tuple(disc.effects))
+    bounds = disc.bounds()
+    p_start = refit_discrepancy(masks, loss, p_fit, disc) if disc.effects else p_fit
+    nm = calibrate_noise(loss, p_start, noise, np.random.default_rng(sampler.seed))
+    logp = RigidLogPosterior(loss, nm, p_fit, prior, bounds)
+    start = nm.center.copy()
+    if disc.effects:  # the walkers' ball must start inside the nuisance prior (a mode may sit below 0)
+        sd = np.sqrt(np.diag(nm.cov))[N_PARAM:]
+        margin = np.minimum(0.2 * sd, 0.05 * (bounds[:, 1] - bounds[:, 0]))
+        start[N_PARAM:] = np.clip(start[N_PARAM:], bounds[:, 0] + margin, bounds[:, 1] - margin)
+    ch = sample(logp, start, nm.cov, sampler, chain_path, progress)
     S = ch.samples()
     nat = to_natural(S)
-    summ = summarize(nat, list(PARAM_NAMES), to_natural(p_fit))
-    for row, u in zip(summ, UNITS):
+    names = list(PARAM_NAMES) + list(disc.effects)
+    units = list(UNITS) + [RIGID_EFFECTS[e].units for e in disc.effects]
+    summ = summarize(nat, names, np.r_[to_natural(p_fit), p_start[N_PARAM:]])
+    for row, u in zip(summ, units):
         row["unit"] = u
     reasons = []
     for i, alt in enumerate(alternatives or []):
-        pa = np.asarray(alt.get("params", p_fit), float).copy()
+        pa = np.asarray(alt.get("params", p_fit), float).copy()[:N_PARAM]
         qa = np.asarray(alt["quaternion"], float)
         if "omega_world" in alt:
             pa[9:12] = alt["omega_world"]
+        pa = np.r_[pa, nm.center[N_PARAM:]]  # the alternative at the mode's nuisance
         e = loss(pa, qa)
         if e is None:
             continue
@@ -514,5 +686,6 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
     split = _orientation_split(S, distinct_deg, 0.01)
     if split > 0.01:
         reasons.append(f"{100 * split:.1f} % of samples are > {distinct_deg:g} deg from the median orientation")
-    return RigidPosterior(list(PARAM_NAMES), list(UNITS), p_fit, q_base, nm, ch, summ, correlation(nat),
-                          bool(reasons), reasons, time.perf_counter() - t_start)
+    dd = {"effects": list(disc.effects), "bounds": bounds.tolist(), "refit": p_start[N_PARAM:].tolist()}
+    return RigidPosterior(names, units, p_fit, q_base, nm, ch, summ, correlation(nat),
+                          bool(reasons), reasons, time.perf_counter() - t_start, dd)
