@@ -65,3 +65,32 @@ def test_null_case_report_is_consistent(null_case):
     assert all(v["px"] >= 0 for v in per_part.values())
     assert "per_metric_term" in d["where"]
     assert np.isfinite(d["gap_per_frame_px"]).all()
+
+
+def test_effect_start_finds_a_coarse_start_the_refit_from_zero_would_miss():
+    """Observed silhouettes made by the model itself with a wind of 3 x its scale along y: the
+    start search tries +-1 and +-3 scales per axis and must pick exactly that point."""
+    from vidsim.cloth import mid_range_params
+    from vidsim.gap.cloth_diagnose import Problem, effect_start
+    from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapModel, ClothSetup
+    from vidsim.reality.cloth import corner_paths, swatch_motion
+    from vidsim.video.camera import PinholeCamera, intrinsics, look_at
+
+    R, t = look_at(np.array([0.0, -1.6, 0.9]), np.array([0.0, 0.0, 0.85]), np.array([0.0, 0.0, 1.0]))
+    cam = PinholeCamera(intrinsics(560.0, None, 159.5, 119.5), R, t, 320, 240, np.zeros(5))
+    times = np.arange(10) / 30.0
+    setup = ClothSetup(times, corner_paths(swatch_motion("exp1"), times), np.arange(0, 10, 2), cam, 0.3, 0.2,
+                       resolution=6, settle_s=0.3)
+    m = ClothGapModel(setup, mid_range_params(density=0.2), ["bend", "stretch"], ("wind",), scale=0.5)
+    th0 = m.theta0()
+    truth = th0.copy()
+    truth[m.slices["wind"].start + 1] = 3.0 * CLOTH_EFFECTS["wind"].scale
+    obs, ok = m.render(truth)
+    assert ok
+    roi = np.ones_like(obs, bool)
+    prob = Problem(m, obs, roi, np.arange(obs.shape[0]), {}, 1e-3)
+    start, n = effect_start(prob, th0, "wind", [1.0, 3.0])
+    assert n == 1 + 3 * 2 * 2
+    np.testing.assert_array_equal(start, truth)
+    same, n0 = effect_start(prob, th0, "wind", [])
+    assert n0 == 1 and same is th0
