@@ -505,8 +505,14 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
         t0 = time.perf_counter()
         S = chain.samples()
         crng = np.random.default_rng(s.seed + 1000 + k_ref)
-        idx = crng.choice(len(S), size=min(s.n_check, len(S)), replace=False)
-        draws = S[idx]
+        # distinct draws: a chain repeats a point whenever a move is rejected, and checking the same
+        # point twice tells nothing new (walking a random permutation keeps the posterior weighting)
+        picked: dict[str, np.ndarray] = {}
+        for i in crng.permutation(len(S)):
+            picked.setdefault(point_key(S[i]), S[i])
+            if len(picked) >= s.n_check:
+                break
+        draws = np.array(list(picked.values()))
         L_sur = sur_loss(draws)
         L_true = np.full(len(draws), np.nan)
         for i, u in enumerate(draws):
