@@ -48,3 +48,16 @@ def test_suite_unknown_case_and_bad_candidate(tmp_path):
                           "gap.diagnose.candidates=[lens_k1,warp_drive]", cwd=tmp_path))
     assert "warp_drive" in line
     assert not (tmp_path / "s").exists()
+
+
+def test_cloth_suite_unknown_case_setting_and_label(tmp_path):
+    line = _one_line(_run("vidsim.cli.gap_cloth_suite", f"paths.out={tmp_path}/c", "gap.cloth.only=[no_such_case]",
+                          cwd=tmp_path))
+    assert "no_such_case" in line
+    line = _one_line(_run("vidsim.cli.gap_cloth_suite", f"paths.out={tmp_path}/c", "+gap.cloth.diagnose.topk=1",
+                          cwd=tmp_path))
+    assert "topk" in line and "top_k" in line
+    line = _one_line(_run("vidsim.cli.gap_cloth_suite", f"paths.out={tmp_path}/c",
+                          "+gap.cloth.cases.bad={label: warp_drive, seed: 1}", "gap.cloth.only=[bad]", cwd=tmp_path))
+    assert "warp_drive" in line
+    assert not (tmp_path / "c").exists()

@@ -88,25 +88,49 @@ def _plot_confusion(rows: list[str], cols: list[str], M: np.ndarray, path: Path)
     save_figure(fig, path)
 
 
+def select_cases(cases_cfg: DictConfig, only_cfg, where: str, labels, error: type[Exception]
+                 ) -> tuple[dict, list[str]]:
+    """The suite's cases and the names to run, checked before anything runs.
+
+    Args:
+        cases_cfg, only_cfg: ``<where>.cases`` and ``<where>.only`` of the config.
+        where: the config node (``gap``, ``gap.cloth``) named in the messages.
+        labels: the domain's ``case_labels(case)`` (raises ``error`` for a bad label).
+
+    Raises:
+        ConfigError: an unknown name in ``only``, no case, a case that is not a mapping or whose
+            label the domain does not know.
+    """
+    cases = OmegaConf.to_container(cases_cfg, resolve=True) or {}
+    only = list(only_cfg)
+    unknown = [c for c in only if c not in cases]
+    if unknown:
+        raise ConfigError(f"{where}.only names unknown case(s) {unknown}; known: {sorted(cases)}")
+    names = only or list(cases)
+    if not names:
+        raise ConfigError(f"{where}.cases is empty: nothing to run")
+    for n in names:
+        if not isinstance(cases[n], dict):
+            raise ConfigError(f"{where}.cases.{n} must be a mapping {{label, seed, effects}}, got {cases[n]!r}")
+        try:
+            labels(cases[n])
+        except error as e:
+            raise ConfigError(f"{where}.cases.{n}: {e}") from e
+    return cases, names
+
+
+def write_confusion(rows: list[str], cols: list[str], M: np.ndarray, folder: Path) -> None:
+    """``confusion.csv`` and ``confusion.png`` of a suite (rows: withheld, columns: first named)."""
+    write_text(folder / "confusion.csv", "true\\named," + ",".join(cols) + "\n"
+               + "".join(f"{r}," + ",".join(str(v) for v in M[i]) + "\n" for i, r in enumerate(rows)))
+    _plot_confusion(rows, cols, M, folder / "confusion.png")
+
+
 def run(cfg: DictConfig) -> None:
     from vidsim.gap.suite import case_labels, confusion, run_case
     from vidsim.reality.rigid import RigidRealityConfig
 
-    cases = OmegaConf.to_container(cfg.gap.cases, resolve=True) or {}
-    only = list(cfg.gap.only)
-    unknown = [c for c in only if c not in cases]
-    if unknown:
-        raise ConfigError(f"gap.only names unknown case(s) {unknown}; known: {sorted(cases)}")
-    names = only or list(cases)
-    if not names:
-        raise ConfigError("gap.cases is empty: nothing to run")
-    for n in names:
-        if not isinstance(cases[n], dict):
-            raise ConfigError(f"gap.cases.{n} must be a mapping {{label, seed, effects}}, got {cases[n]!r}")
-        try:
-            case_labels(cases[n])
-        except GapError as e:
-            raise ConfigError(f"gap.cases.{n}: {e}") from e
+    cases, names = select_cases(cfg.gap.cases, cfg.gap.only, "gap", case_labels, GapError)
     dcfg = diagnose_config(cfg.gap.diagnose)
     sc = cfg.gap.scene
     scene = RigidRealityConfig(n_frames=sc.n_frames, n_background=sc.n_background, width=sc.width,
@@ -143,10 +167,7 @@ def run(cfg: DictConfig) -> None:
                                                      "diagnosis": d.to_dict()})
             log_diagnosis(lg, d, masks, prefix=f"{n}/")
             prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
-    rows, cols, M = confusion(scores)
-    write_text(tmp / "confusion.csv", "true\\named," + ",".join(cols) + "\n"
-               + "".join(f"{r}," + ",".join(str(v) for v in M[i]) + "\n" for i, r in enumerate(rows)))
-    _plot_confusion(rows, cols, M, tmp / "confusion.png")
+    write_confusion(*confusion(scores), tmp)
     lines = ["case,label,named,correct,heldout_before_px,noise_floor_px,effect,heldout_after_px,closure,"
              "strength_estimate,strength_truth,strength_rel_error"]
     for n, s in scores.items():

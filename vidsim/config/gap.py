@@ -79,6 +79,25 @@ class GapSceneConfig:
 
 
 @dataclass
+class GapClothConfig:
+    """The cloth domain's withheld-effect cases (stage ``gap_cloth_suite``, :mod:`vidsim.gap.cloth_suite`).
+
+    Attributes:
+        diagnose: settings of :class:`vidsim.gap.cloth_diagnose.ClothDiagnoseConfig` that differ
+            from its defaults (same names; an unknown name stops the stage before any case runs).
+        scene: settings of :class:`vidsim.gap.cloth_suite.ClothSceneConfig` that differ from its
+            defaults (same names, same check).
+        cases: name -> ``{label, seed, kind, fabric, effects}`` (see :mod:`vidsim.gap.cloth_suite`).
+        only: names of the cases to run (empty: all).
+    """
+
+    diagnose: dict[str, Any] = field(default_factory=dict)
+    scene: dict[str, Any] = field(default_factory=dict)
+    cases: dict[str, Any] = field(default_factory=dict)
+    only: list[str] = field(default_factory=list)
+
+
+@dataclass
 class GapConfig:
     """Settings of the gap stages.
 
@@ -90,6 +109,7 @@ class GapConfig:
         cases: the suite's cases, name -> ``{label, seed, effects | gust, render}`` (see
             :mod:`vidsim.gap.suite`); ``conf/gap/default.yaml`` holds the public suite.
         only: names of the cases to run (empty: all), e.g. the quick subset.
+        cloth: the cloth domain's cases (``gap_cloth_suite``).
     """
 
     enabled: bool = True
@@ -98,3 +118,4 @@ class GapConfig:
     scene: GapSceneConfig = field(default_factory=GapSceneConfig)
     cases: dict[str, Any] = field(default_factory=dict)
     only: list[str] = field(default_factory=list)
+    cloth: GapClothConfig = field(default_factory=GapClothConfig)

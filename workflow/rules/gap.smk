@@ -1,13 +1,19 @@
 # Sim-to-real gap (issue 7): where the gap of a fit lies, which unmodelled effect causes it, how far
 # it shrinks. What runs: `gap:` in the Snakemake config -- suite_cases (names of entries of
 # conf/gap/default.yaml `cases`; empty list = all), diagnose_cases (rigid cases of `rigid.cases`
-# whose fit is diagnosed), ball (the real toss, both timings). How: Hydra (`gap.*`; per-rule
-# `overrides: {gap_suite: ..., diagnose_rigid: ..., gap_ball: ...}`).
+# whose fit is diagnosed), ball (the real toss, both timings), cloth_suite_cases (the cloth cases,
+# below). How: Hydra (`gap.*`; per-rule `overrides: {gap_suite: ..., diagnose_rigid: ..., gap_ball: ...,
+# gap_cloth_suite: ...}`).
 # Layout: {RESULTS}/gap/suite/{suite.json,confusion.*,shrinkage.csv,suite.rrd,cases/},
-# {RESULTS}/gap/rigid_{case}/{diagnosis.json,diagnosis.png,diagnosis.rrd}, {RESULTS}/gap/ball/.
+# {RESULTS}/gap/rigid_{case}/{diagnosis.json,diagnosis.png,diagnosis.rrd}, {RESULTS}/gap/ball/,
+# {RESULTS}/gap/cloth_suite/{suite.json,confusion.*,cases/}.
 GAP = config.get("gap", {}) or {}
 GAP_SUITE_ONLY = ",".join(str(c) for c in (GAP.get("suite_cases", []) or []))
 GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
+# cloth_suite_cases: absent or null = the cloth cases do not run; [] = all of conf/gap/default.yaml
+# `cloth.cases`; a list = those (docs/gap.md, cloth: measured, nothing named yet)
+GAP_CLOTH = GAP.get("cloth_suite_cases")
+GAP_CLOTH_ONLY = ",".join(str(c) for c in (GAP_CLOTH or []))
 
 
 if stage_enabled("gap"):
@@ -15,6 +21,8 @@ if stage_enabled("gap"):
     TARGETS["gap"] += [f"{RESULTS}/gap/rigid_{c}/diagnosis.json" for c in GAP_DIAGNOSE]
     if GAP.get("ball", False) and shared_available("tracklab_physics/verticalToss.webm"):
         TARGETS["gap"] += [f"{RESULTS}/gap/ball/ball_gap.json"]
+    if GAP_CLOTH is not None:
+        TARGETS["gap"] += [f"{RESULTS}/gap/cloth_suite/suite.json"]
 
 
 rule gap_suite:
@@ -41,6 +49,30 @@ rule gap_suite:
         runtime=60,
     shell:
         "python -m vidsim.cli.gap_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
+
+
+rule gap_cloth_suite:
+    """Cloth withheld-effect cases: film a twin swatch with the effect on, fit it, diagnose it blind, score it."""
+    output:
+        suite=f"{RESULTS}/gap/cloth_suite/suite.json",
+        confusion=report(
+            f"{RESULTS}/gap/cloth_suite/confusion.png",
+            caption="../report/gap_cloth_confusion.rst",
+            category="Sim-to-real gap",
+        ),
+    params:
+        out=get_out_dir,
+        only=f"gap.cloth.only=[{GAP_CLOTH_ONLY}]",
+        extra=stage_overrides("gap_cloth_suite"),
+    log:
+        f"{RESULTS}/logs/gap_cloth_suite.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1200,  # measured peak RSS 502-537 MB (one case through this stage, two runs, 2026-12-01)
+        runtime=20,  # 26-56 CPU-s per case measured (4 public cases about 3 CPU-min)
+    shell:
+        "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 
 
 rule diagnose_rigid:

@@ -1,0 +1,86 @@
+"""Stage ``gap_cloth_suite``: the cloth domain's withheld-effect cases -- film, fit, diagnose blind, score.
+
+``python -m vidsim.cli.gap_cloth_suite paths.out=results/gap/cloth_suite [gap.cloth.only=[null_a,wind]]``.
+Cases are the entries of ``gap.cloth.cases`` (``conf/gap/default.yaml``; add one with
+``+gap.cloth.cases.mycase={label: grip_slip, seed: 9, effects: {grip_slip: {drop: 0.02}}}``);
+``gap.cloth.diagnose`` and ``gap.cloth.scene`` set fields of
+:class:`vidsim.gap.cloth_diagnose.ClothDiagnoseConfig` and
+:class:`vidsim.gap.cloth_suite.ClothSceneConfig` (added with a ``+``:
+``+gap.cloth.diagnose.top_k=1``; an unknown name stops the stage before any case runs). Writes ``cases/<name>.json`` (case, score,
+diagnosis), ``suite.json`` (scores, the headline rates of :func:`vidsim.cli.gap_suite.headline`,
+seconds), ``confusion.csv`` and ``confusion.png`` (true label vs first named effect). Only the
+scoring reads the truth (:func:`vidsim.gap.cloth_suite.run_case`). No checkpoint: a case takes
+about a CPU-minute.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from vidsim.cli._app import stage_app
+from vidsim.cli.gap_suite import headline, select_cases, write_confusion
+from vidsim.errors import ConfigError
+from vidsim.io.atomic import write_json
+from vidsim.log.progress import Progress
+
+
+def settings(cls: type, values: dict, where: str):
+    """``cls(**values)``, with an unknown name reported as a config error naming ``where``."""
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(cls)}
+    bad = sorted(set(values) - known)
+    if bad:
+        raise ConfigError(f"{where}: unknown setting(s) {bad}; known: {sorted(known)}")
+    return cls(**values)
+
+
+def run(cfg: DictConfig) -> None:
+    from vidsim.gap.cloth_diagnose import ClothDiagnoseConfig
+    from vidsim.gap.cloth_model import ClothGapError
+    from vidsim.gap.cloth_suite import ClothSceneConfig, case_labels, confusion, run_case
+
+    cc = cfg.gap.cloth
+    cases, names = select_cases(cc.cases, cc.only, "gap.cloth", case_labels, ClothGapError)
+    dcfg = settings(ClothDiagnoseConfig, OmegaConf.to_container(cc.diagnose, resolve=True), "gap.cloth.diagnose")
+    try:
+        dcfg.validate()
+    except ClothGapError as e:
+        raise ConfigError(str(e)) from e
+    scene = settings(ClothSceneConfig, OmegaConf.to_container(cc.scene, resolve=True), "gap.cloth.scene")
+    out = Path(cfg.paths.out)
+    tmp = out.with_name(f".{out.name}.part")
+    if tmp.exists():
+        shutil.rmtree(tmp)
+    (tmp / "cases").mkdir(parents=True)
+    prog = Progress(len(names), "gap_cloth_suite cases", every_s=0.0, enabled=cfg.log.progress)
+    scores: dict[str, dict] = {}
+    t0 = time.perf_counter()
+    for n in names:
+        try:
+            d, s, _ = run_case(cases[n], scene, dcfg, cfg.cloth)
+        except ClothGapError as e:
+            raise ConfigError(f"gap.cloth.cases.{n}: {e}") from e
+        scores[n] = s
+        write_json(tmp / "cases" / f"{n}.json", {"case": cases[n], "score": s, "diagnosis": d.to_dict()})
+        prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+    write_confusion(*confusion(scores), tmp)
+    summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
+            "diagnose_config": OmegaConf.to_container(cc.diagnose, resolve=True),
+            "scene_config": OmegaConf.to_container(cc.scene, resolve=True)}
+    write_json(tmp / "suite.json", summ)
+    print(f"gap_cloth_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+
+
+main = stage_app("gap_cloth_suite", run)
+
+if __name__ == "__main__":
+    main()
