@@ -12,6 +12,21 @@ BALL_SEG = SegmentConfig(min_area=4, open_px=0, close_px=1, mixed_fraction=0.0, 
                          keep="all", max_area=600)
 
 
+def test_perspective_flight_leaves_the_focal_free(rng):
+    """Centroids and blob radii of one flight see (f X, Z, f R) only up to a common scale; with |g|
+    fixed that leaves one free direction (depth, focal, depth velocity, gravity's out-of-plane angle
+    together): a synthetic flight filmed at f = 600 px is fitted to the noise level along it, and
+    the fit reports the focal as undetermined."""
+    t = np.arange(24) / 30.0
+    f_true, R = 600.0, 0.035
+    X = np.array([0.1, 0.4, 2.5]) + np.outer(t, [0.2, -3.5, -0.8]) + 0.5 * np.outer(t ** 2, [0.0, 9.81, 0.0])
+    uv = f_true * X[:, :2] / X[:, 2:3] + [319.5, 239.5] + rng.normal(0, 0.2, (len(t), 2))
+    areas = np.pi * (f_true * R / X[:, 2]) ** 2
+    fit = fit_flight_perspective(t, uv, areas, np.arange(len(t)), (640, 480))
+    assert fit.rms_px < 0.4  # the track is reproduced to the noise (0.2 px per axis)
+    assert not fit.focal_determined and fit.focal_sd_log > 1.0
+
+
 def test_parabola_fit_recovers_synthetic_flight(rng):
     t = np.cumsum(rng.uniform(0.028, 0.040, 30))
     t -= t[0]
@@ -53,6 +68,7 @@ def test_real_vertical_toss(shared_data):
     fits = [fit_flight_perspective(tt, centres, areas, fl, (640, 480)) for fl in flights[:2] for tt in (times, t30)]
     for f in fits:
         assert f.rms_px < 0.4 * fit_ts.rms_px and f.rms_px < 3.0
-        assert 400 < f.focal < 800  # a webcam lens; consistent between flights
         assert f.gravity[1] > 0.95 * 9.81 * 0.98  # mostly down the image
-    assert abs(fits[0].focal - fits[2].focal) < 0.15 * fits[0].focal
+        # one flight does not fix the focal (see test_perspective_flight_leaves_the_focal_free): the
+        # fit says so instead of reporting where its optimiser stopped (378-684 px across scipy versions)
+        assert not f.focal_determined and f.focal_sd_log > 1.0
