@@ -43,10 +43,10 @@ hanging flat from two grips sits on a buckling bifurcation at rest (a wind of 5e
 moves a vertex by 3 mm at frame 0), and its shaken trajectory is chaotic: a relative change of
 1e-5 in the stretch stiffness moves vertices by about 0.2 px at 0.5 s and several pixels by 1 s,
 at the twin's true parameters as at a fit's. Finite differences and trust-region refits then see
-noise, not the effect's signature: on 30-frame clips the screen's ranking is arbitrary and no
-refit moves; on 16-frame clips (0.53 s) the screen ranks a withheld wind or lens k1 first but
-the refits still do not close the gap, so nothing is named (docs/gap.md, cloth). The null case
-names nothing, for the same reason as much as for the right one.
+noise, not the effect's signature: on 30-frame clips the screen's ranking depends on the step
+and no refit moves; on 16-frame clips (0.53 s) the screen ranks a withheld wind, lens k1 or time
+offset first but the refits do not close half the gap, so they are not named. A withheld grip
+slip (kinematic: it moves the driven corners) is named with closure 0.57 (docs/gap.md, cloth).
 """
 
 from __future__ import annotations

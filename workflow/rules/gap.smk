@@ -69,8 +69,8 @@ rule gap_cloth_suite:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1200,  # measured peak RSS 502-537 MB (one case through this stage, two runs, 2026-12-01)
-        runtime=20,  # 26-56 CPU-s per case measured (4 public cases about 3 CPU-min)
+        mem_mb=1200,  # measured peak RSS 502-597 MB (1 and 3 cases through this stage, 2026-12-01)
+        runtime=30,  # 26-90 CPU-s per case measured (the 7 public cases about 7 CPU-min)
     shell:
         "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 
