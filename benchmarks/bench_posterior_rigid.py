@@ -49,13 +49,13 @@ from vidsim.rigid.fit import fit_throw  # noqa: E402
 from vidsim.video.camera import PinholeCamera  # noqa: E402
 
 
-def label(model: str, effects: tuple[str, ...]) -> str:
-    """Row name of a noise model with the nuisance effects (``sandwich+quadratic_drag``)."""
-    return "+".join((model,) + tuple(effects))
+def label(model: str, effects: tuple[str, ...], signed: bool = False) -> str:
+    """Row name of a noise model with the nuisance effects (``sandwich+quadratic_drag``, ``+signed``)."""
+    return "+".join((model,) + tuple(effects) + (("signed",) if signed and effects else ()))
 
 
 def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, fit, truth: dict,
-                 effects: tuple[str, ...] = ()) -> list[dict]:
+                 effects: tuple[str, ...] = (), signed: bool = False) -> list[dict]:
     """Coverage of the Gaussian (Laplace) approximation ``N(center, (w H)^-1)`` of each noise model.
 
     With ``effects`` the mode is refitted with the nuisance free (once per throw, timed with the first
@@ -63,7 +63,7 @@ def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, 
     central 90 % interval of its draws' marginals.
     """
     rows = []
-    disc = DiscrepancyConfig(effects=tuple(effects))
+    disc = DiscrepancyConfig(effects=tuple(effects), signed=signed)
     disc.validate()
     t_refit = time.perf_counter()
     loss = FrameLoss(body, cam, fit.times, d["masks"][fit.frames], fit.t0, fit.q0, effects=disc.effects)
@@ -85,12 +85,12 @@ def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, 
             cov = np.abs(z) <= 1.6449
             nuis = []
         secs = time.perf_counter() - t + (t_refit if i == 0 else 0.0)
-        rows.append({"seed": seed, "drag": drag, "model": label(m, effects), "covered": cov.tolist(),
+        rows.append({"seed": seed, "drag": drag, "model": label(m, effects, signed), "covered": cov.tolist(),
                      "n_covered": int(cov.sum()), "z": z.tolist(), "w": nm.w, "inflation": nm.inflation,
                      "seconds": secs, "refit_seconds": t_refit, "nuisance_q05_q50_q95": nuis,
                      "converged": False, "ess_per_minute": 0.0})
         extra = " nuisance " + " ".join(f"{e} {q[1]:.3g} [{q[0]:.3g}, {q[2]:.3g}]" for e, q in zip(effects, nuis))
-        print(f"seed {seed} drag {drag:g} {label(m, effects):16s} LAPLACE covered {cov.sum():2d}/14 w {nm.w:.3g} "
+        print(f"seed {seed} drag {drag:g} {label(m, effects, signed):16s} LAPLACE covered {cov.sum():2d}/14 w {nm.w:.3g} "
               f"inflation {nm.inflation:.3g} |z|max {np.abs(z).max():.1f} ({PARAM_NAMES[int(np.abs(z).argmax())]})"
               f"{extra if effects else ''} {secs:.0f} s", flush=True)
     return rows
@@ -112,7 +112,7 @@ def cached_fit(seed: int, drag: float, d: dict, cam, body, truth: dict):
 
 
 def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, laplace: bool = False,
-              effects: tuple[str, ...] = ()) -> list[dict]:
+              effects: tuple[str, ...] = (), signed: bool = False) -> list[dict]:
     """Fit and sample one throw for each noise model; rows of coverage and cost."""
     d = throw_data(seed, drag)
     cam = PinholeCamera.from_dict(d["camera"])
@@ -120,25 +120,25 @@ def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, la
     truth = d["truth"]
     fit = cached_fit(seed, drag, d, cam, body, truth)
     if laplace:
-        return laplace_rows(seed, drag, models, d, cam, body, fit, truth, effects)
+        return laplace_rows(seed, drag, models, d, cam, body, fit, truth, effects, signed)
     rows = []
     for m in models:
         post = rigid_posterior(d["masks"][fit.frames], fit.times, cam, body, fit.params, fit.q0, fit.t0,
                                noise=NoiseConfig(model=m), sampler=scfg,
-                               discrepancy=DiscrepancyConfig(effects=tuple(effects)))
+                               discrepancy=DiscrepancyConfig(effects=tuple(effects), signed=signed))
         tp = to_natural(truth_params(truth, post.q_base, body.symmetries))
         S = post.samples()[:, :14]
         cov = covered(S, tp, 90.0)
         dg = post.diagnostics()
         z = (np.median(S, 0) - tp) / S.std(0)
         nuis = np.percentile(post.samples()[:, 14:], [5, 50, 95], axis=0).T.tolist()
-        rows.append({"seed": seed, "drag": drag, "model": label(m, effects), "covered": cov.tolist(),
+        rows.append({"seed": seed, "drag": drag, "model": label(m, effects, signed), "covered": cov.tolist(),
                      "n_covered": int(cov.sum()), "nuisance_q05_q50_q95": nuis, "z": z.tolist(),
                      "fit_seconds": fit.seconds, "mean_iou": fit.mean_iou,
                      "converged": dg["converged"], "tau_max": dg["tau_max"], "n_steps": dg["n_steps"],
                      "seconds": dg["seconds"], "ess": dg["ess"], "ess_per_minute": dg["ess_per_minute"],
                      "w": post.noise.w, "r2": post.noise.r2, "multimodal": post.multimodal})
-        print(f"seed {seed} drag {drag:g} {label(m, effects):13s} covered {cov.sum():2d}/14 converged {dg['converged']!s:5s} "
+        print(f"seed {seed} drag {drag:g} {label(m, effects, signed):13s} covered {cov.sum():2d}/14 converged {dg['converged']!s:5s} "
               f"tau {dg['tau_max']:.0f} steps {dg['n_steps']} posterior {dg['seconds']:.0f} s "
               f"(fit {fit.seconds:.0f} s) ESS/min {dg['ess_per_minute']:.0f} w {post.noise.w:.3g} "
               f"r2 {post.noise.r2:.3f} |z|max {np.abs(z).max():.1f} ({PARAM_NAMES[int(np.abs(z).argmax())]})",
@@ -157,17 +157,18 @@ def main() -> None:
     ap.add_argument("--laplace", action="store_true", help="Gaussian approximation only (no MCMC)")
     ap.add_argument("--discrepancy", nargs="*", default=[],
                     help="gap-library effects sampled as nuisance parameters (e.g. quadratic_drag)")
+    ap.add_argument("--signed", action="store_true", help="nuisance prior [-upper, upper] instead of [0, upper]")
     a = ap.parse_args()
     scfg = SamplerConfig(n_walkers=a.walkers, max_steps=a.max_steps, chunk=100, min_steps=300)
     t = time.perf_counter()
     rows = []
     for s in a.seeds:
-        rows += run_throw(s, a.drag, a.noise, scfg, a.laplace, tuple(a.discrepancy))
+        rows += run_throw(s, a.drag, a.noise, scfg, a.laplace, tuple(a.discrepancy), a.signed)
         if a.json:
             with open(a.json, "w") as fh:
                 json.dump(rows, fh)
     print(f"--- {len(a.seeds)} throws, drag {a.drag:g}, total {time.perf_counter() - t:.0f} s (shared 2-core machine)")
-    for m in (label(x, tuple(a.discrepancy)) for x in a.noise):
+    for m in (label(x, tuple(a.discrepancy), a.signed) for x in a.noise):
         r = [x for x in rows if x["model"] == m]
         cov = np.array([x["covered"] for x in r])
         per_param = cov.mean(0)

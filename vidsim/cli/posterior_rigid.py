@@ -53,7 +53,7 @@ def run(cfg: DictConfig) -> None:
     if not cfg.paths.footage:
         raise ConfigError("paths.footage is empty: give the footage folder of the throw (meta.yaml, calibration)")
     disc = DiscrepancyConfig(effects=tuple(rc.discrepancy), upper=dict(rc.discrepancy_upper),
-                             refit_nfev=int(rc.discrepancy_refit_nfev))
+                             refit_nfev=int(rc.discrepancy_refit_nfev), signed=bool(rc.discrepancy_signed))
     try:
         disc.validate()
     except PosteriorError as e:

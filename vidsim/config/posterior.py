@@ -24,6 +24,8 @@ class PosteriorRigidConfig:
             marginal over them. Empty: none. An unknown name is an error.
         discrepancy_upper: prior upper bounds overriding the defaults, e.g. ``{quadratic_drag: 2.0}``.
         discrepancy_refit_nfev: least-squares budget of the refit of the mode with the nuisance free.
+        discrepancy_signed: prior ``[-upper, upper]`` instead of ``[0, upper]`` (a discrepancy term that
+            may take unphysical signs, so that a truth of 0 is not on the prior's bound).
         prior_position_m: prior half-width around the fitted position, m.
         prior_rotation_deg: largest prior rotation away from the fitted orientation, degrees.
         prior_velocity_mps: prior half-width around the fitted velocity, m/s.
@@ -45,6 +47,7 @@ class PosteriorRigidConfig:
     discrepancy: list[str] = field(default_factory=list)
     discrepancy_upper: dict[str, float] = field(default_factory=dict)
     discrepancy_refit_nfev: int = 15
+    discrepancy_signed: bool = False
     prior_position_m: float = 0.5
     prior_rotation_deg: float = 45.0
     prior_velocity_mps: float = 2.0

@@ -246,18 +246,19 @@ def residual_region(model: RigidGapModel, masks: np.ndarray, theta: np.ndarray, 
     return obs, roi
 
 
-def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15, upper: np.ndarray | None = None
-          ) -> tuple[np.ndarray, dict]:
+def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 15, upper: np.ndarray | None = None,
+          lower: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     """Least-squares refit of all parameters of ``prob.model`` on ``prob.frames``.
 
-    ``upper`` (n_params,): optional upper bounds (``inf``: none; the lower ones are the model's).
+    ``upper`` / ``lower`` (n_params,): optional bounds (``inf``: none); the lower ones default to
+    the model's (:meth:`RigidGapModel.lower`).
 
     Returns:
         theta and info ``{cost, nfev, ok, cov}`` where ``cov`` is the Gauss-Newton covariance of
         the parameters (physical units, residual variance from the fit).
     """
     xs = prob.model.x_scale()
-    lo = (prob.model.lower() - theta0) / xs
+    lo = ((prob.model.lower() if lower is None else np.asarray(lower, float)) - theta0) / xs
     x0 = np.zeros(prob.model.n_params)
     # a parameter starting on its bound cannot move under the trust-region's bound scaling
     # (Coleman-Li): start bounded ones a quarter of their typical size inside

@@ -147,10 +147,14 @@ class DiscrepancyConfig:
         upper: prior upper bounds overriding :data:`DISCREPANCY_UPPER` (same names, effect units).
         refit_nfev: budget of the least-squares refit of the mode with the nuisance free.
         refit_scale: image scale of that refit (0.5: half resolution).
+        signed: the prior is ``[-upper, upper]`` instead of ``[0, upper]``: the coefficient is then a
+            discrepancy term, not a physical drag (negative values speed the body up), and a truth of
+            0 is no longer on the prior's bound.
     """
 
     effects: tuple[str, ...] = ()
     upper: dict[str, float] = field(default_factory=dict)
+    signed: bool = False
     refit_nfev: int = 15
     refit_scale: float = 0.5
 
@@ -171,8 +175,9 @@ class DiscrepancyConfig:
                                  f"{self.refit_nfev}, {self.refit_scale}")
 
     def bounds(self) -> np.ndarray:
-        """(n, 2) prior interval ``[0, upper]`` of each nuisance parameter, effect units."""
-        return np.array([[0.0, float(self.upper.get(e, DISCREPANCY_UPPER[e]))] for e in self.effects]).reshape(-1, 2)
+        """(n, 2) prior interval ``[0, upper]`` (``signed``: ``[-upper, upper]``) of each nuisance parameter."""
+        up = [float(self.upper.get(e, DISCREPANCY_UPPER[e])) for e in self.effects]
+        return np.array([[-u if self.signed else 0.0, u] for u in up]).reshape(-1, 2)
 
 
 # ----------------------------------------------------------------------------- likelihood
@@ -262,8 +267,10 @@ def refit_discrepancy(masks: np.ndarray, loss: FrameLoss, p0: np.ndarray, cfg: D
     model = RigidGapModel(o.body, o.cam, o.times, o.t0, loss.q_base, loss.effects, cfg.refit_scale, 1.0, o.hmax,
                           loss.gravity)
     obs, roi = residual_region(model, masks, theta0, roi_px)
-    upper = np.r_[np.full(N_PARAM, np.inf), cfg.bounds()[:, 1]]
-    theta, _ = refit(Problem(model, obs, roi, np.arange(len(o.times))), theta0, cfg.refit_nfev, upper)
+    b = cfg.bounds()
+    upper = np.r_[np.full(N_PARAM, np.inf), b[:, 1]]
+    lower = np.r_[np.full(N_PARAM, -np.inf), b[:, 0]]
+    theta, _ = refit(Problem(model, obs, roi, np.arange(len(o.times))), theta0, cfg.refit_nfev, upper, lower)
     e0, e1 = loss(theta0), loss(theta)
     if e1 is None or (e0 is not None and np.sum(e1) >= np.sum(e0)):
         return theta0

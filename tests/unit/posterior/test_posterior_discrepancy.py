@@ -90,6 +90,11 @@ def test_log_posterior_honours_the_nuisance_prior(drag_throw) -> None:
 QD = ("quadratic_drag",)
 
 
+def test_signed_prior_is_symmetric() -> None:
+    assert DiscrepancyConfig(effects=QD).bounds().tolist() == [[0.0, 5.0]]
+    assert DiscrepancyConfig(effects=QD, upper={"quadratic_drag": 2.0}, signed=True).bounds().tolist() == [[-2.0, 2.0]]
+
+
 @pytest.mark.parametrize("kw, what", [({"effects": ("quadratic_drgg",)}, "quadratic_drgg"),
                                       ({"effects": QD + QD}, "twice"),
                                       ({"effects": QD, "upper": {"angular_drag": 1.0}}, "angular_drag"),
