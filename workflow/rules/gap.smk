@@ -69,8 +69,8 @@ rule gap_cloth_suite:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1200,  # measured peak RSS 502-597 MB (1 and 3 cases through this stage, 2026-12-01)
-        runtime=30,  # 26-90 CPU-s per case measured (the 7 public cases about 7 CPU-min)
+        mem_mb=1200,  # measured peak RSS 557 MB (the 7 public cases, 2026-12-01; 502-597 MB in smaller runs)
+        runtime=30,  # the 7 public cases: 391 CPU-s, 644 s wall at load ~8 (2026-12-01)
     shell:
         "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 
