@@ -55,7 +55,7 @@ def label(model: str, effects: tuple[str, ...], signed: bool = False) -> str:
 
 
 def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, fit, truth: dict,
-                 effects: tuple[str, ...] = (), signed: bool = False) -> list[dict]:
+                 effects: tuple[str, ...] = (), signed: bool = False, refit_nfev: int = 15) -> list[dict]:
     """Coverage of the Gaussian (Laplace) approximation ``N(center, (w H)^-1)`` of each noise model.
 
     With ``effects`` the mode is refitted with the nuisance free (once per throw, timed with the first
@@ -63,7 +63,7 @@ def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, 
     central 90 % interval of its draws' marginals.
     """
     rows = []
-    disc = DiscrepancyConfig(effects=tuple(effects), signed=signed)
+    disc = DiscrepancyConfig(effects=tuple(effects), signed=signed, refit_nfev=refit_nfev)
     disc.validate()
     t_refit = time.perf_counter()
     loss = FrameLoss(body, cam, fit.times, d["masks"][fit.frames], fit.t0, fit.q0, effects=disc.effects)
@@ -112,7 +112,7 @@ def cached_fit(seed: int, drag: float, d: dict, cam, body, truth: dict):
 
 
 def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, laplace: bool = False,
-              effects: tuple[str, ...] = (), signed: bool = False) -> list[dict]:
+              effects: tuple[str, ...] = (), signed: bool = False, refit_nfev: int = 15) -> list[dict]:
     """Fit and sample one throw for each noise model; rows of coverage and cost."""
     d = throw_data(seed, drag)
     cam = PinholeCamera.from_dict(d["camera"])
@@ -120,12 +120,13 @@ def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, la
     truth = d["truth"]
     fit = cached_fit(seed, drag, d, cam, body, truth)
     if laplace:
-        return laplace_rows(seed, drag, models, d, cam, body, fit, truth, effects, signed)
+        return laplace_rows(seed, drag, models, d, cam, body, fit, truth, effects, signed, refit_nfev)
     rows = []
     for m in models:
         post = rigid_posterior(d["masks"][fit.frames], fit.times, cam, body, fit.params, fit.q0, fit.t0,
                                noise=NoiseConfig(model=m), sampler=scfg,
-                               discrepancy=DiscrepancyConfig(effects=tuple(effects), signed=signed))
+                               discrepancy=DiscrepancyConfig(effects=tuple(effects), signed=signed,
+                                                             refit_nfev=refit_nfev))
         tp = to_natural(truth_params(truth, post.q_base, body.symmetries))
         S = post.samples()[:, :14]
         cov = covered(S, tp, 90.0)
@@ -158,12 +159,13 @@ def main() -> None:
     ap.add_argument("--discrepancy", nargs="*", default=[],
                     help="gap-library effects sampled as nuisance parameters (e.g. quadratic_drag)")
     ap.add_argument("--signed", action="store_true", help="nuisance prior [-upper, upper] instead of [0, upper]")
+    ap.add_argument("--refit-nfev", type=int, default=15, help="budget of the mode's refit with the nuisance free")
     a = ap.parse_args()
     scfg = SamplerConfig(n_walkers=a.walkers, max_steps=a.max_steps, chunk=100, min_steps=300)
     t = time.perf_counter()
     rows = []
     for s in a.seeds:
-        rows += run_throw(s, a.drag, a.noise, scfg, a.laplace, tuple(a.discrepancy), a.signed)
+        rows += run_throw(s, a.drag, a.noise, scfg, a.laplace, tuple(a.discrepancy), a.signed, a.refit_nfev)
         if a.json:
             with open(a.json, "w") as fh:
                 json.dump(rows, fh)
