@@ -131,7 +131,9 @@ MOTIONS: dict[str, dict[str, Any]] = {
     "robot": {"center": [0.0, 0.0, 1.0], "width": 0.3, "amplitude": [0.02, 0.10, 0.0],
               "frequency": 0.9, "phase": 0.0, "roll": 0.45, "yaw": 0.0, "bob": 0.04, "ramp": 0.25},
 }
-_MOTION_KEYS = set(MOTIONS["exp1"])
+#: optional motion keys and their defaults (older motion dicts without them stay valid)
+_MOTION_OPTIONAL = {"squeeze": 0.0}
+_MOTION_KEYS = set(MOTIONS["exp1"]) | set(_MOTION_OPTIONAL)
 
 
 def swatch_motion(name: str) -> dict[str, Any]:
@@ -145,10 +147,10 @@ def _check_motion(motion: dict[str, Any]) -> dict[str, Any]:
     if not isinstance(motion, dict):
         raise ClothRealityError(f"motion must be a dict, got {type(motion).__name__}")
     unknown = set(motion) - _MOTION_KEYS - {"name"}
-    missing = _MOTION_KEYS - set(motion)
+    missing = _MOTION_KEYS - set(motion) - set(_MOTION_OPTIONAL)
     if unknown or missing:
         raise ClothRealityError(f"motion keys: unknown {sorted(unknown)}, missing {sorted(missing)}")
-    m = dict(motion)
+    m = {**_MOTION_OPTIONAL, **motion}
     for k in ("center", "amplitude"):
         v = np.asarray(m[k], dtype=float)
         if v.shape != (3,) or not np.all(np.isfinite(v)):
@@ -158,6 +160,8 @@ def _check_motion(motion: dict[str, Any]) -> dict[str, Any]:
         raise ClothRealityError(f"motion['width'] must be > 0 m, got {m['width']!r}")
     if not (m["frequency"] >= 0 and m["ramp"] >= 0):
         raise ClothRealityError("motion['frequency'] and motion['ramp'] must be >= 0")
+    if not 0 <= float(m["squeeze"]) < 0.8:
+        raise ClothRealityError(f"motion['squeeze'] must be in [0, 0.8) (fraction of the width), got {m['squeeze']!r}")
     return m
 
 
@@ -166,8 +170,10 @@ def corner_paths(motion: dict[str, Any], times: np.ndarray) -> np.ndarray:
 
     The bar between the corners translates by ``amplitude * sin(2 pi f t + phase)``, bobs by
     ``bob * sin(4 pi f t)`` in z, rolls (about y) by ``roll * sin(2 pi f t)`` and yaws (about z)
-    by ``yaw * sin(2 pi f t + phase)``; everything is multiplied by a smooth ramp that rises
-    from 0 (at rest, zero velocity at t = 0) to 1 at ``t = ramp``.
+    by ``yaw * sin(2 pi f t + phase)``, and the grips move towards each other by the fraction
+    ``squeeze * (1 - cos(2 pi f t)) / 2`` of the width (the top edge is pushed together and the
+    fabric folds, as hands do); everything is multiplied by a smooth ramp that rises from 0 (at
+    rest, zero velocity at t = 0) to 1 at ``t = ramp``.
 
     Args:
         motion: a motion dict (see :data:`MOTIONS`).
@@ -188,7 +194,8 @@ def corner_paths(motion: dict[str, Any], times: np.ndarray) -> np.ndarray:
     disp[:, 2] += env * m["bob"] * np.sin(2 * w * t)
     roll = env * m["roll"] * np.sin(w * t)
     yaw = env * m["yaw"] * np.sin(w * t + m["phase"])
-    half = 0.5 * m["width"]
+    half = 0.5 * m["width"] * (1.0 - float(m["squeeze"]) * env * 0.5 * (1.0 - np.cos(w * t)))
+    half = half[:, None]
     # bar direction: +x rotated by roll (about y, lifts +x end when positive) then yaw (about z)
     d = np.stack([np.cos(roll) * np.cos(yaw), np.cos(roll) * np.sin(yaw), np.sin(roll)], axis=1)
     mid = m["center"][None, :] + disp
