@@ -276,6 +276,7 @@ def angle_map(
     min_strength: float = 0.05,
     min_orientedness: float = 0.2,
     region: np.ndarray | None = None,
+    crop: bool = True,
 ) -> AngleMap:
     """Dominant stripe orientation per pixel (the seed's angle map).
 
@@ -289,6 +290,10 @@ def angle_map(
             taken over every other pixel in each direction).
         min_orientedness: and when ``strength / C1`` is at least this (rejects isotropic texture).
         region: optional ``(H, W)`` bool; pixels outside are invalid (e.g. the silhouette).
+        crop: when the image is exactly zero outside a box (a rendered object on a black
+            background: the estimator's simulated footage), filter only that box (with a margin
+            wide enough that the result is the same, tested bit for bit); about 4x faster on the
+            cloth scene. ``False`` always filters the whole frame.
 
     Returns:
         :class:`AngleMap` with ``theta`` in radians (see the module conventions).
@@ -298,25 +303,79 @@ def angle_map(
         blur_sigma = 0.5 * bank.tuned_period_px
     if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
         raise AngleMapError(f"blur_sigma must be >= 0 pixels, got {blur_sigma!r}")
-    c1, c2, c3 = energy_coefficients(bank.responses(image))
+    img = _as_gray(image)
+    if region is not None:
+        region = np.asarray(region, dtype=np.bool_)
+        if region.shape != img.shape:
+            raise AngleMapError(f"region must have shape {img.shape}, got {region.shape}")
+    box = _zero_outside_box(img, bank, blur_sigma) if (crop and min_orientedness > 0) else None
+    if box is None:
+        return _angle_map_full(img, bank, blur_sigma, min_strength, min_orientedness, region)
+    # exact shortcut for a frame that is zero outside a box (a rendered cloth on a black
+    # background): every response, coefficient and blurred coefficient outside the box is exactly
+    # zero, so the frame's pixels outside are invalid (zero strength and orientedness) and the
+    # reference percentile counts them as zeros
+    r0, r1, c0, c1 = box
+    sub = _angle_map_full(img[r0:r1, c0:c1], bank, blur_sigma, min_strength, min_orientedness,
+                          None if region is None else region[r0:r1, c0:c1],
+                          ref_from=(img.shape, r0, c0))
+    H, W = img.shape
+    out = AngleMap(theta=np.full((H, W), np.nan, np.float32), strength=np.zeros((H, W), np.float32),
+                   orientedness=np.zeros((H, W), np.float32), valid=np.zeros((H, W), np.bool_),
+                   gradient=np.zeros((H, W), np.float32))
+    for name in ("theta", "strength", "orientedness", "valid", "gradient"):
+        getattr(out, name)[r0:r1, c0:c1] = getattr(sub, name)
+    return out
+
+
+def _zero_outside_box(img: np.ndarray, bank: SteerableBank, blur_sigma: float) -> tuple[int, int, int, int] | None:
+    """``(r0, r1, c0, c1)`` of a box outside which ``img`` is zero, with a margin so wide that
+    reflected borders read zeros only: the responses are zero beyond the kernels' half-width r_k
+    from the non-zero pixels and the coefficients too, so a margin of r_k + r_b + 3 (r_b the
+    blur's 4 sigma half-width) leaves the image zero within r_k of the box's edge and the
+    coefficients zero within r_b of it; None when the box would not save half of the frame."""
+    rows = np.flatnonzero(img.any(axis=1))
+    if rows.size == 0:
+        return None
+    cols = np.flatnonzero(img.any(axis=0))
+    margin = bank.ksize // 2 + int(round(4 * blur_sigma)) + 3
+    H, W = img.shape
+    r0, r1 = max(0, rows[0] - margin), min(H, rows[-1] + 1 + margin)
+    c0, c1 = max(0, cols[0] - margin), min(W, cols[-1] + 1 + margin)
+    if (r1 - r0) * (c1 - c0) > 0.5 * H * W:
+        return None
+    return int(r0), int(r1), int(c0), int(c1)
+
+
+def _angle_map_full(img: np.ndarray, bank: SteerableBank, blur_sigma: float, min_strength: float,
+                    min_orientedness: float, region: np.ndarray | None,
+                    ref_from: tuple[tuple[int, int], int, int] | None = None) -> AngleMap:
+    """:func:`angle_map` on the whole of ``img``; with ``ref_from = ((H, W), r0, c0)`` ``img`` is the
+    box at ``(r0, c0)`` of a zero frame of shape ``(H, W)`` and the reference percentile is that
+    frame's."""
+    c1, c2, c3 = energy_coefficients(bank.responses(img))
     if blur_sigma > 0:
         c1, c2, c3 = (cv2.GaussianBlur(c, (0, 0), blur_sigma, borderType=cv2.BORDER_REFLECT) for c in (c1, c2, c3))
     # theta_d = atan2(C3, C2) / 2 is the direction of maximal energy (across the stripes),
     # counter-clockwise on screen because the image y axis points down. The stripe orientation
     # theta_d + pi/2 has double angle 2 theta_d + pi, i.e. (cos, sin) = -(C2, C3) / strength,
     # so atan2(-C3, -C2) / 2 lands directly in (-pi/2, pi/2].
-    strength = cv2.magnitude(c2, c3)
+    # (numpy, not cv2.magnitude: its vector and scalar paths round differently, so a box and the
+    # whole frame would differ in the last bit)
+    strength = np.sqrt(c2 * c2 + c3 * c3)
     # the 99th percentile, estimated on every other pixel in each direction (the strength is
     # blurred over several pixels, and a full-frame partition was a third of the angle map's cost)
-    flat = strength[::2, ::2].ravel()
-    k = int(0.99 * (flat.size - 1))
-    ref = float(np.partition(flat, k)[k])
-    if region is None:
-        reg = np.ones(strength.shape, dtype=np.bool_)
+    if ref_from is None:
+        flat = strength[::2, ::2].ravel()
+        zeros = 0
     else:
-        reg = np.asarray(region, dtype=np.bool_)
-        if reg.shape != strength.shape:
-            raise AngleMapError(f"region must have shape {strength.shape}, got {reg.shape}")
+        (H, W), r0, c0 = ref_from
+        flat = strength[r0 % 2::2, c0 % 2::2].ravel()  # the frame's even rows and columns
+        zeros = ((H + 1) // 2) * ((W + 1) // 2) - flat.size  # its samples outside the box: 0
+    n = flat.size + zeros
+    k = int(0.99 * (n - 1))
+    ref = 0.0 if k < zeros else float(np.partition(flat, k - zeros)[k - zeros])
+    reg = np.ones(strength.shape, dtype=np.bool_) if region is None else region
     theta = np.empty_like(strength)
     orientedness = np.empty_like(strength)
     valid = np.empty(strength.shape, dtype=np.bool_)

@@ -167,3 +167,35 @@ def test_fused_coefficients_equal_reference_formulas(rng):
     for a, b in zip(fused, ref):
         assert a.dtype == np.float32
         np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5)
+
+
+@pytest.mark.parametrize("shift", [(0, 0), (37, -51), (-60, 95), (71, 120)])
+def test_cropped_angle_map_equals_the_full_frame_bit_for_bit(shift):
+    """A rendered object on a black background is filtered in a box only; the result must be the
+    whole-frame result exactly (the estimator's simulated footage takes this path)."""
+    from omegaconf import OmegaConf
+
+    from vidsim.cloth import swatch
+    from vidsim.config import camera_from_config, projector_from_config
+    from vidsim.config.cloth import ClothConfig
+    from vidsim.render.projector import Projector, render_stripes_batch
+
+    cfg = OmegaConf.structured(ClothConfig())
+    cam = camera_from_config(cfg.camera)
+    proj = Projector(projector_from_config(cfg.projector), period_px=cfg.projector.period_px,
+                     power=cfg.projector.power, ambient=cfg.projector.ambient)
+    m = swatch(12, 12, 0.3, 0.3, origin=(-0.15, 0.0, 1.0), axis_u=(1.0, 0.0, 0.0), axis_v=(0.0, 0.0, -1.0))
+    V = m.rest_positions.copy()
+    V[:, 1] += 0.03 * np.sin(9 * V[:, 0]) * np.cos(7 * V[:, 2])  # folds
+    # move the swatch in the image (the box's parity, and boxes touching the frame's border)
+    V[:, 0] += shift[0] * 1.6 / 560
+    V[:, 2] -= shift[1] * 1.6 / 560
+    img, depth = render_stripes_batch(V[None], m.triangles, cam, proj)
+    img, sil = img[0], np.isfinite(depth[0])
+    assert sil.sum() > 500
+    bank = SteerableBank.for_period(6.5)
+    a = angle_map(img, bank, region=sil)
+    b = angle_map(img, bank, region=sil, crop=False)
+    for name in ("theta", "strength", "orientedness", "valid", "gradient"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    assert np.isfinite(a.theta).sum() > 0.5 * sil.sum()
