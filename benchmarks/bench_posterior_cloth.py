@@ -4,22 +4,26 @@ Usage::
 
     python benchmarks/bench_posterior_cloth.py [--cases 6] [--estimate bend stretch shear] \
         [--twin-resolution 12] [--resolution 12] [--stride 2] [--budget 40] [--grid-levels 3] \
-        [--posterior-hydra posterior=quick] [--work /tmp/vidsim_bench_posterior_cloth] [--json out.json]
+        [--grid-params bend stretch shear] [--posterior-hydra posterior=quick] \
+        [--work /tmp/vidsim_bench_posterior_cloth] [--json out.json]
 
 Each case is a twin reality (the estimator's own simulator, ``cloth.reality.kind=twin``) whose
 estimated parameters are drawn at random (seeded by the case number) in the middle half of their
 configured ranges (the unit-cube coordinates 0.25-0.75; log-uniform on log axes), and whose sensor
 noise has its own seed. The case runs the pipeline's own stages as subprocesses, as Snakemake would:
-``cloth_reality`` (exp1, exp2), ``cloth_fit`` per trial (a ``--grid-levels`` grid over the estimated parameters +
-``--budget`` annealing evaluations), ``cloth_select``, ``posterior_cloth``. The parameters that
+``cloth_reality`` (exp1, exp2), ``cloth_fit`` per trial (a ``--grid-levels`` grid over ``--grid-params`` +
+``--budget`` annealing evaluations over all estimated parameters), ``cloth_select``, ``posterior_cloth``.
+``--grid-params`` defaults to the estimated parameters when there are at most three (a full grid),
+else to the pipeline's static grid ``bend stretch shear`` (a grid over nine would be 3^9 points). The parameters that
 are not estimated are fixed at the twin's values (known, like the density): the reduced setting of
 this benchmark. Only the scoring below reads the truth (``<footage>.truth.yaml``).
 
 Reported per case and parameter: whether the central 90 % interval (summary.csv q05-q95) contains
 the truth, the truth's quantile in the posterior samples (uniform on [0, 1] for a calibrated
 posterior), and per case: converged flag, tau, the surrogate check's largest error, the stage's
-wall and CPU time, ESS per minute. Stage outputs are reused when present (a stopped benchmark
-continues). Single thread per stage. ``--twin-resolution`` equal to ``--resolution`` removes the
+wall and CPU time, ESS per minute, and the CPU time of every stage of the case (reality, fits,
+selection, posterior; kept in ``<case>/timing.json`` so a continued run still reports them). Stage
+outputs are reused when present (a stopped benchmark continues). Single thread per stage. ``--twin-resolution`` equal to ``--resolution`` removes the
 mesh discrepancy (the twin then differs from the model only by sensor noise, blur and the twin's
 longer settling); the twin's default 25 keeps it.
 """
@@ -81,18 +85,28 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=50)
     ap.add_argument("--budget", type=int, default=40)
     ap.add_argument("--grid-levels", type=int, default=3)
+    ap.add_argument("--grid-params", nargs="*", default=None,
+                    help="static grid parameters (default: --estimate if at most 3, else bend stretch shear)")
     ap.add_argument("--posterior-hydra", default="posterior=quick")
     ap.add_argument("--work", default="/tmp/vidsim_bench_posterior_cloth")
     ap.add_argument("--json", default="")
     a = ap.parse_args()
-    tag = f"est{'-'.join(a.estimate)}_r{a.resolution}_tr{a.twin_resolution}_s{a.stride}_b{a.budget}"
+    if a.grid_params is None:
+        a.grid_params = list(a.estimate) if len(a.estimate) <= 3 else ["bend", "stretch", "shear"]
+    bad = [p for p in a.grid_params if p not in a.estimate]
+    if bad:
+        ap.error(f"--grid-params {bad} are not in --estimate {a.estimate}")
+    est = "all9" if sorted(a.estimate) == sorted(_default_space()) else "-".join(a.estimate)
+    tag = f"est{est}_r{a.resolution}_tr{a.twin_resolution}_s{a.stride}_b{a.budget}"
+    if a.grid_params != list(a.estimate) or a.grid_levels != 3:  # the first study's tag had neither
+        tag += f"_g{'-'.join(a.grid_params)}x{a.grid_levels}"
     root = Path(a.work) / tag
     cal = Path(a.work) / "calibration" / "cloth" / "calibration.yaml"
     if not cal.is_file():
         run("vidsim.cli.calibrate", "camera=cloth", "projector=cloth", "calibrate=cloth", f"paths.results={a.work}",
             f"paths.out={cal.parent}")
     model = [f"cloth.model.resolution={a.resolution}", f"cloth.model.frame_stride={a.stride}",
-             f"cloth.fit.estimate=[{','.join(a.estimate)}]", f"cloth.fit.grid_params=[{','.join(a.estimate)}]",
+             f"cloth.fit.estimate=[{','.join(a.estimate)}]", f"cloth.fit.grid_params=[{','.join(a.grid_params)}]",
              f"cloth.fit.budget={a.budget}", f"cloth.fit.grid_levels={a.grid_levels}", "cloth.fit.n_candidates=2"]
     rows = []
     for i in range(a.first, a.first + a.cases):
@@ -101,30 +115,43 @@ def main() -> None:
         fixed = [f"+cloth.fit.fixed.{k}={v!r}" for k, v in truth.items() if k not in a.estimate and k != "density"]
         folders, fits = [], []
         t_case = time.perf_counter()
+        R.mkdir(parents=True, exist_ok=True)
+        tfile = R / "timing.json"
+        timing = json.loads(tfile.read_text()) if tfile.is_file() else {}
+
+        def timed(key: str, mod: str, *args: str) -> tuple[float, float]:
+            w, c = run(mod, *args)
+            timing[key] = {"wall_s": w, "cpu_s": c}
+            tfile.write_text(json.dumps(timing, indent=1))
+            return w, c
+
         for trial in ("exp1", "exp2"):
             fp = R / "footage" / f"cloth_twin_{trial}"
             if not (fp / "meta.yaml").is_file():
-                run("vidsim.cli.cloth_reality", f"paths.results={R}", f"paths.calibration={cal}", f"paths.out={fp}",
+                timed(f"reality_{trial}", "vidsim.cli.cloth_reality", f"paths.results={R}", f"paths.calibration={cal}", f"paths.out={fp}",
                     "cloth.reality.kind=twin", f"cloth.reality.motion={trial}", f"cloth.reality.seed={i}",
                     f"cloth.reality.n_frames={a.frames}", f"cloth.reality.twin_resolution={a.twin_resolution}",
                     *[f"cloth.reality.twin_params.{k}={v!r}" for k, v in truth.items()])
             out = R / "cloth" / "fit" / f"twin_{trial}"
             if not (out / "fit.yaml").is_file():
-                run("vidsim.cli.cloth_fit", f"paths.results={R}", f"paths.footage={fp}", f"paths.out={out}", *model,
+                timed(f"fit_{trial}", "vidsim.cli.cloth_fit", f"paths.results={R}", f"paths.footage={fp}", f"paths.out={out}", *model,
                     *fixed)
             folders.append(str(fp))
             fits.append(str(out / "fit.yaml"))
         sel = R / "cloth" / "select" / "twin"
         if not (sel / "params.yaml").is_file():
-            run("vidsim.cli.cloth_select", f"paths.results={R}", f"paths.out={sel}",
+            timed("select", "vidsim.cli.cloth_select", f"paths.results={R}", f"paths.out={sel}",
                 f"cloth.select.fits=[{','.join(fits)}]", f"cloth.select.footage=[{','.join(folders)}]", *model, *fixed)
         post = R / "posterior" / "cloth" / "twin"
-        wall = cpu = float("nan")
+        wall = timing.get("posterior", {}).get("wall_s", float("nan"))
+        cpu = timing.get("posterior", {}).get("cpu_s", float("nan"))
         if not (post / "posterior.yaml").is_file():
-            wall, cpu = run("vidsim.cli.posterior_cloth", f"paths.results={R}", f"paths.out={post}",
+            wall, cpu = timed("posterior", "vidsim.cli.posterior_cloth", f"paths.results={R}", f"paths.out={post}",
                             f"posterior.cloth.params={sel / 'params.yaml'}", f"posterior.cloth.fits=[{','.join(fits)}]",
                             f"posterior.cloth.footage=[{','.join(folders)}]", *model, *fixed,
                             *a.posterior_hydra.split())
+        stage_cpu = {k: sum(v["cpu_s"] for n, v in timing.items() if n.startswith(k))
+                     for k in ("reality", "fit", "select", "posterior")}
         # ---- scoring: the only place that reads the truth
         tdoc = yaml.safe_load(Path(f"{folders[0]}.truth.yaml").read_text())
         pdoc = yaml.safe_load((post / "posterior.yaml").read_text())
@@ -149,6 +176,7 @@ def main() -> None:
                          "ess_per_min_stage": pdoc["diagnostics"]["ess_per_min_stage"],
                          "stage_s": pdoc["diagnostics"]["seconds"]["stage"], "wall_s": wall, "cpu_s": cpu,
                          "true_evals": pdoc["diagnostics"]["true_evaluations"],
+                         **{f"cpu_{k}_s": v for k, v in stage_cpu.items()},
                          "multimodal": pdoc["diagnostics"]["multimodal"]})
             r = rows[-1]
             print(f"case {i} {n:>15}: truth {t:.4g} point {r['point']:.4g} 90% [{q05:.4g}, {q95:.4g}] "
@@ -158,6 +186,8 @@ def main() -> None:
               f"surrogate max error {r['check_max_logp']:.3g} log-density ({r['check_max_loss']:.3g} loss), ok "
               f"{r['check_ok']}, posterior stage {r['stage_s']:.0f} s (cpu {cpu:.0f} s), ESS/min {r['ess_per_min_stage']:.0f}, "
               f"case {time.perf_counter() - t_case:.0f} s, load {os.getloadavg()[0]:.1f}", flush=True)
+        print(f"case {i}: CPU s per stage " + ", ".join(f"{k} {v:.0f}" for k, v in stage_cpu.items())
+              + " (a stage reused from an earlier run without timing.json counts 0)", flush=True)
     cov = np.array([r["covered"] for r in rows])
     print(f"\ncoverage of the 90 % intervals: {cov.mean():.3f} ({cov.sum()}/{cov.size} (case, parameter) pairs) over "
           f"{a.cases} cases [{tag}]")
@@ -170,6 +200,9 @@ def main() -> None:
           f"median posterior stage {np.median([r['stage_s'] for r in per_case.values()]):.0f} s; median ESS/min "
           f"{np.median([r['ess_per_min_stage'] for r in per_case.values()]):.0f} (stage), "
           f"{np.median([r['ess_per_min_sampling'] for r in per_case.values()]):.0f} (sampling)")
+    for k in ("reality", "fit", "select", "posterior"):
+        v = [r[f"cpu_{k}_s"] for r in per_case.values()]
+        print(f"  CPU s per case, {k}: median {np.median(v):.0f}, range {min(v):.0f}-{max(v):.0f}")
     if a.json:
         Path(a.json).write_text(json.dumps({"tag": tag, "rows": rows, "coverage": float(cov.mean())}, indent=1))
 
