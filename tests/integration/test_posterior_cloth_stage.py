@@ -83,3 +83,18 @@ def test_posterior_cloth_stage_on_a_tiny_twin(tiny_twin):
     # the stretch of the twin (300 N/m) from a 20-4000 N/m box: a finite, informative interval near it
     assert float(q95) / float(q05) < 20 and float(q05) / 3 < truth["stretch"] < 3 * float(q95)
     assert "posterior_cloth: converged" in log
+    # Table 1 with intervals: the selection beside its posterior (the estimated parameter with its
+    # interval, the others marked fixed); a missing summary is a one-line error naming the file
+    tab = res / "posterior" / "cloth" / "table1"
+    out = _run("vidsim.cli.cloth_table1", f"paths.results={res}", f"paths.out={tab}", "cloth.table1.fabrics=[twin]",
+               f"cloth.table1.params=[{sel / 'params.yaml'}]", f"cloth.table1.summaries=[{post / 'summary.csv'}]")
+    assert "table1_cloth: 1 fabrics" in out and (tab / "table1_intervals.png").is_file()
+    rows = {r.split(",")[1]: r.split(",") for r in (tab / "table1_intervals.csv").read_text().splitlines()[1:]}
+    assert set(rows) == {"bend", "stretch", "shear", "bend_damping", "stretch_damping", "shear_damping", "drag_linear",
+                         "drag_quad", "drag_degrade"}
+    assert rows["stretch"][5:7] == [f"{float(q05):.5g}", f"{float(q95):.5g}"] and rows["bend"][-1] == "fixed"
+    p = subprocess.run([sys.executable, "-m", "vidsim.cli.cloth_table1", f"paths.results={res}", f"paths.out={tab}_bad",
+                        "cloth.table1.fabrics=[twin]", f"cloth.table1.params=[{sel / 'params.yaml'}]",
+                        f"cloth.table1.summaries=[{res / 'nope.csv'}]"], cwd=ROOT, capture_output=True, text=True)
+    assert p.returncode == 2 and "nope.csv" in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and not (tab.parent / "table1_bad").exists()

@@ -294,6 +294,16 @@ class ClothSkirtConfig:
 
 
 @dataclass
+class ClothTable1Config:
+    """Inputs of ``table1_cloth`` (Snakemake fills them): per fabric its selected ``params.yaml`` and
+    its posterior ``summary.csv`` (same order as ``fabrics``)."""
+
+    fabrics: list[str] = field(default_factory=list)
+    params: list[str] = field(default_factory=list)
+    summaries: list[str] = field(default_factory=list)
+
+
+@dataclass
 class ClothConfig:
     """Settings of the cloth stages."""
 
@@ -311,3 +321,4 @@ class ClothConfig:
     profile: ClothProfileConfig = field(default_factory=ClothProfileConfig)
     twin: ClothTwinConfig = field(default_factory=ClothTwinConfig)
     compare: ClothCompareConfig = field(default_factory=ClothCompareConfig)
+    table1: ClothTable1Config = field(default_factory=ClothTable1Config)

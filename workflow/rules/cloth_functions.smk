@@ -50,6 +50,12 @@ def cloth_meta_folders(wildcards, input):
     return cloth_folders(input.metas)
 
 
+def table1_cloth_inputs(wildcards, input):
+    """cloth.table1.* overrides: the fabrics of Table 1 with their selections and posterior summaries."""
+    return (f"cloth.table1.fabrics=[{','.join(POSTERIOR_TABLE1_FABRICS)}] cloth.table1.params=[{','.join(input.params)}] "
+            f"cloth.table1.summaries=[{','.join(input.summaries)}]")
+
+
 def posterior_cloth_inputs(wildcards, input):
     """posterior.cloth.* overrides: the fabric's selection, its fits and footage folders (trial order)."""
     return (f"posterior.cloth.params={input.params} posterior.cloth.fits=[{','.join(input.fits)}] "

@@ -14,6 +14,8 @@ _cc = POSTERIOR.get("cloth_cases", []) or []
 _cloth_all = list(CLOTH_FABRICS) + [t for t in CLOTH_TWINS if t not in CLOTH_FABRICS]
 POSTERIOR_CLOTH_CASES = _cloth_all if _cc == "all" else [c for c in _cc if c in _cloth_all]
 POSTERIOR_HYDRA = str(POSTERIOR.get("hydra", "") or "")
+# Table 1 with intervals: the fabrics (not twins) that have a posterior, in study order
+POSTERIOR_TABLE1_FABRICS = [f for f in CLOTH_FABRICS if f in POSTERIOR_CLOTH_CASES]
 
 
 if stage_enabled("posterior"):
@@ -26,6 +28,8 @@ if stage_enabled("posterior"):
         TARGETS["posterior"] += [
             f"{RESULTS}/posterior/cloth/{c}/{f}" for c in POSTERIOR_CLOTH_CASES for f in ("summary.csv", "check.png")
         ]
+        if POSTERIOR_TABLE1_FABRICS:
+            TARGETS["posterior"] += [f"{RESULTS}/posterior/cloth/table1/table1_intervals.png"]
 
 
 rule posterior_rigid:
@@ -125,3 +129,36 @@ rule posterior_cloth:
     shell:
         "python -m vidsim.cli.posterior_cloth paths.out={params.out} {params.inputs} "
         "{params.cloth} {params.fabric} {params.family} {params.extra} > {log} 2>&1"
+
+
+rule table1_cloth:
+    """Table 1 with a 90 % posterior interval per parameter: every fabric's selection beside its posterior."""
+    input:
+        params=expand(f"{RESULTS}/cloth/select/{{fabric}}/params.yaml", fabric=POSTERIOR_TABLE1_FABRICS),
+        summaries=expand(f"{RESULTS}/posterior/cloth/{{fabric}}/summary.csv", fabric=POSTERIOR_TABLE1_FABRICS),
+    output:
+        csv=report(
+            f"{RESULTS}/posterior/cloth/table1/table1_intervals.csv",
+            caption="../report/posterior_cloth_table1.rst",
+            category="Posteriors",
+            subcategory="cloth Table 1",
+        ),
+        png=report(
+            f"{RESULTS}/posterior/cloth/table1/table1_intervals.png",
+            caption="../report/posterior_cloth_table1.rst",
+            category="Posteriors",
+            subcategory="cloth Table 1",
+        ),
+    params:
+        out=get_out_dir,
+        inputs=table1_cloth_inputs,
+        extra=stage_overrides("table1_cloth"),
+    log:
+        f"{RESULTS}/logs/table1_cloth.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=500,
+        runtime=5,
+    shell:
+        "python -m vidsim.cli.cloth_table1 paths.out={params.out} {params.inputs} {params.extra} > {log} 2>&1"

@@ -162,6 +162,21 @@ def test_trials_differ_slightly_and_robot_differs_more():
     np.testing.assert_allclose(e1[0], [[-0.15, 0.0, 1.0], [0.15, 0.0, 1.0]], atol=1e-12)  # starts at rest
 
 
+def test_grip_squeeze_brings_the_grips_together_and_is_off_by_default():
+    t = np.arange(60) / 30.0
+    mot = swatch_motion("exp1")
+    assert "squeeze" not in mot  # the named motions keep the grips 0.3 m apart
+    sq = {**mot, "squeeze": 0.35}
+    gap = np.linalg.norm(np.diff(corner_paths(sq, t), axis=1)[:, 0], axis=1)
+    np.testing.assert_allclose(gap[0], 0.3, atol=1e-12)  # at rest: the swatch's width
+    # the grips come together by up to 35 % once the ramp is over (cos term: minimum at f t = 1/2)
+    assert 0.3 * 0.65 - 1e-3 < gap.min() < 0.3 * 0.7 and gap.max() <= 0.3 + 1e-12
+    mid = 0.5 * corner_paths(sq, t).sum(axis=1)
+    np.testing.assert_allclose(mid, 0.5 * corner_paths(mot, t).sum(axis=1), atol=1e-12)  # the bar's centre is unchanged
+    with pytest.raises(ClothRealityError, match="squeeze"):
+        corner_paths({**mot, "squeeze": 0.9}, t)
+
+
 def test_bad_inputs_raise_clear_errors():
     with pytest.raises(ClothRealityError, match="unknown effect"):
         resolve_effects({"wnd": {"on": True}})
