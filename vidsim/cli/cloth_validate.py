@@ -22,10 +22,9 @@ from vidsim.cli.cloth_common import (
     matrix_figure,
     read_selected,
 )
+from vidsim.cloth import ESTIMATED_NAMES
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.report.figures import save_figure
-
-SHOWN = ("bend", "stretch", "shear", "drag_linear", "drag_quad")
 
 
 def run(cfg: DictConfig) -> None:
@@ -54,16 +53,18 @@ def run(cfg: DictConfig) -> None:
             name = f"opt {short.get(trial, trial)}" + (f" #{k}" if k not in ("", "0") else "") + (" *" if r["chosen"] else "")
             rows.append((fab, name, r["params"], {short.get(t, t): e for t, e in r["errors"].items()}, r["total"]))
     trials = sorted({t for *_, errs, _ in rows for t in errs})
-    hdr = "fabric,set," + ",".join(SHOWN) + "," + ",".join(f"E_{t}" for t in trials) + ",E_sum\n"
-    lines = [f"{fab},{name}," + ",".join(f"{float(p[k]):.4g}" for k in SHOWN) + "," +
+    # the estimated parameters: those that differ between the table's rows (the fixed ones are equal)
+    shown = [k for k in ESTIMATED_NAMES if len({float(p[k]) for _, _, p, _, _ in rows}) > 1] or list(ESTIMATED_NAMES)
+    hdr = "fabric,set," + ",".join(shown) + "," + ",".join(f"E_{t}" for t in trials) + ",E_sum\n"
+    lines = [f"{fab},{name}," + ",".join(f"{float(p[k]):.4g}" for k in shown) + "," +
              ",".join(f"{errs[t]:.4g}" if t in errs else "" for t in trials) + "," + (f"{tot:.4g}" if tot is not None else "") + "\n"
              for fab, name, p, errs, tot in rows]
     write_text(out / "table1.csv", hdr + "".join(lines))
-    fig, ax = plt.subplots(figsize=(12, 0.3 * len(rows) + 0.9))
+    fig, ax = plt.subplots(figsize=(7 + 1.1 * len(shown), 0.3 * len(rows) + 0.9))
     ax.axis("off")
-    cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in SHOWN] + [f"{errs[t]:.3g}" if t in errs else "" for t in trials] +
+    cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in shown] + [f"{errs[t]:.3g}" if t in errs else "" for t in trials] +
              [f"{tot:.3g}" if tot is not None else ""] for fab, name, p, errs, tot in rows]
-    tb = ax.table(cellText=cells, colLabels=["fabric", "set", *SHOWN, *[f"E {t}" for t in trials], "E sum"], loc="center",
+    tb = ax.table(cellText=cells, colLabels=["fabric", "set", *shown, *[f"E {t}" for t in trials], "E sum"], loc="center",
                   cellLoc="center")
     tb.auto_set_font_size(False)
     tb.set_fontsize(7)
