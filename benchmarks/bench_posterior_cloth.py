@@ -25,7 +25,8 @@ wall and CPU time, ESS per minute, and the CPU time of every stage of the case (
 selection, posterior; kept in ``<case>/timing.json`` so a continued run still reports them). Stage
 outputs are reused when present (a stopped benchmark continues). Single thread per stage. ``--twin-resolution`` equal to ``--resolution`` removes the
 mesh discrepancy (the twin then differs from the model only by sensor noise, blur and the twin's
-longer settling); the twin's default 25 keeps it.
+longer settling); the twin's default 25 keeps it. A ``--posterior-hydra`` other than ``posterior=quick``
+(``""``: the default posterior setting) samples the same realities and fits into ``posterior/cloth/twin__<overrides>``.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import resource
 import subprocess
 import sys
@@ -108,6 +110,9 @@ def main() -> None:
     model = [f"cloth.model.resolution={a.resolution}", f"cloth.model.frame_stride={a.stride}",
              f"cloth.fit.estimate=[{','.join(a.estimate)}]", f"cloth.fit.grid_params=[{','.join(a.grid_params)}]",
              f"cloth.fit.budget={a.budget}", f"cloth.fit.grid_levels={a.grid_levels}", "cloth.fit.n_candidates=2"]
+    # posteriors of other settings than the default ``posterior=quick`` go to their own folder
+    # (``twin__<overrides>``) beside it, on the same realities and fits
+    ptag = "" if a.posterior_hydra == "posterior=quick" else "__" + (re.sub(r"[^A-Za-z0-9=.-]+", "_", a.posterior_hydra) or "default")
     rows = []
     for i in range(a.first, a.first + a.cases):
         R = root / f"case{i}"
@@ -142,16 +147,17 @@ def main() -> None:
         if not (sel / "params.yaml").is_file():
             timed("select", "vidsim.cli.cloth_select", f"paths.results={R}", f"paths.out={sel}",
                 f"cloth.select.fits=[{','.join(fits)}]", f"cloth.select.footage=[{','.join(folders)}]", *model, *fixed)
-        post = R / "posterior" / "cloth" / "twin"
-        wall = timing.get("posterior", {}).get("wall_s", float("nan"))
-        cpu = timing.get("posterior", {}).get("cpu_s", float("nan"))
+        post = R / "posterior" / "cloth" / ("twin" + ptag)
+        wall = timing.get("posterior" + ptag, {}).get("wall_s", float("nan"))
+        cpu = timing.get("posterior" + ptag, {}).get("cpu_s", float("nan"))
         if not (post / "posterior.yaml").is_file():
-            wall, cpu = timed("posterior", "vidsim.cli.posterior_cloth", f"paths.results={R}", f"paths.out={post}",
+            wall, cpu = timed("posterior" + ptag, "vidsim.cli.posterior_cloth", f"paths.results={R}", f"paths.out={post}",
                             f"posterior.cloth.params={sel / 'params.yaml'}", f"posterior.cloth.fits=[{','.join(fits)}]",
                             f"posterior.cloth.footage=[{','.join(folders)}]", *model, *fixed,
                             *a.posterior_hydra.split())
-        stage_cpu = {k: sum(v["cpu_s"] for n, v in timing.items() if n.startswith(k))
-                     for k in ("reality", "fit", "select", "posterior")}
+        stage_cpu = {k: sum(v["cpu_s"] for n, v in timing.items() if n.startswith(k) and not n.startswith("posterior"))
+                     for k in ("reality", "fit", "select")}
+        stage_cpu["posterior"] = timing.get("posterior" + ptag, {}).get("cpu_s", 0.0)
         # ---- scoring: the only place that reads the truth
         tdoc = yaml.safe_load(Path(f"{folders[0]}.truth.yaml").read_text())
         pdoc = yaml.safe_load((post / "posterior.yaml").read_text())
@@ -190,7 +196,7 @@ def main() -> None:
               + " (a stage reused from an earlier run without timing.json counts 0)", flush=True)
     cov = np.array([r["covered"] for r in rows])
     print(f"\ncoverage of the 90 % intervals: {cov.mean():.3f} ({cov.sum()}/{cov.size} (case, parameter) pairs) over "
-          f"{a.cases} cases [{tag}]")
+          f"{a.cases} cases [{tag}, posterior overrides {a.posterior_hydra!r}]")
     for n in a.estimate:
         c = [r["covered"] for r in rows if r["param"] == n]
         print(f"  {n}: {np.mean(c):.2f} ({sum(c)}/{len(c)})")
