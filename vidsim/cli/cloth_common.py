@@ -120,7 +120,8 @@ def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
     return ClothObjective(trials, space, fixed=fixed_params(cfg),
                           model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s), integrator=str(m.integrator),
                                               skirt_rings=int(cfg.cloth.skirt.model_rings),
-                                              skirt_around=int(cfg.cloth.skirt.model_around)),
+                                              skirt_around=int(cfg.cloth.skirt.model_around),
+                                              skirt_rest_bend=str(cfg.cloth.skirt.model_rest_bend)),
                           features=feature_settings(cfg), alpha=float(cfg.cloth.fit.alpha))
 
 

@@ -73,7 +73,8 @@ def run(cfg: DictConfig) -> None:
 def _tris(tr, cfg: DictConfig) -> np.ndarray:
     from vidsim.clothfit.rig import skirt_model_mesh
 
-    return skirt_model_mesh(tr.skirt, int(cfg.cloth.skirt.model_rings), int(cfg.cloth.skirt.model_around))[0].triangles
+    sk = cfg.cloth.skirt
+    return skirt_model_mesh(tr.skirt, int(sk.model_rings), int(sk.model_around), str(sk.model_rest_bend))[0].triangles
 
 
 def _stills_figure(stills: list, path: Path) -> None:

@@ -94,7 +94,8 @@ class ModelSettings:
     """The estimator's simulator settings (see :class:`vidsim.config.cloth.ClothModelConfig`).
 
     ``resolution``: swatch vertices per side; ``skirt_rings``/``skirt_around``: the skirt model's
-    rings and vertices per ring.
+    rings and vertices per ring; ``skirt_rest_bend``: its bending rest state
+    (:data:`vidsim.clothfit.rig.SKIRT_REST_BEND`).
     """
 
     resolution: int = 20
@@ -102,6 +103,7 @@ class ModelSettings:
     integrator: str = "fast"
     skirt_rings: int = 8
     skirt_around: int = 24
+    skirt_rest_bend: str = "cone"
 
 
 @dataclass
@@ -172,7 +174,7 @@ class ClothObjective:
         for tr in trials:
             if tr.skirt is not None:
                 mesh, drv, t0, col = skirt_model_rig(tr.skirt, tr.times, model.skirt_rings, model.skirt_around,
-                                                     model.settle_s)
+                                                     model.settle_s, model.skirt_rest_bend)
             else:
                 mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
                 drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)

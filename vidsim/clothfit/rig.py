@@ -110,29 +110,40 @@ class SkirtBody:
             raise RigError(f"{where}: field 'body' is not numeric ({e})") from None
 
 
-def skirt_model_mesh(body: SkirtBody, rings: int, around: int) -> tuple[ClothMesh, np.ndarray]:
+SKIRT_REST_BEND = ("cone", "flat")
+"""Bending rest state of the estimator's skirt: ``cone`` (the sewn cone is the rest shape: no
+bending force in the cone) or ``flat`` (the fabric's own rest curvature, zero: it was cut flat and
+the seam alone holds it in a cone, so bending resists the cone's curvature as in a sewn garment)."""
+
+
+def skirt_model_mesh(body: SkirtBody, rings: int, around: int, rest_bend: str = "cone"
+                     ) -> tuple[ClothMesh, np.ndarray]:
     """The estimator's skirt at the frame-0 waist pose.
 
     Args:
         body: the measured body and cut.
         rings: vertex rings from waist to hem (>= 2). around: vertices per ring (>= 3).
+        rest_bend: bending rest state, one of :data:`SKIRT_REST_BEND`.
 
     Returns:
-        ``(mesh, waist_local)``: the mesh (rest shape = the sewn cone, ``flat_rest_bend=False``, as
-        a sewn skirt rests in its cone) and the (around, 3) waistband vertices in the waist frame.
+        ``(mesh, waist_local)``: the mesh (starting in the sewn cone; its bending rest state per
+        ``rest_bend``) and the (around, 3) waistband vertices in the waist frame.
     """
     if int(rings) < 2 or int(around) < 3:
         raise RigError(f"skirt model needs rings >= 2 and around >= 3, got {rings}, {around}")
+    if rest_bend not in SKIRT_REST_BEND:
+        raise RigError(f"cloth.skirt.model_rest_bend = {rest_bend!r}: expected one of {list(SKIRT_REST_BEND)}")
+    flat = rest_bend == "flat"
     local = skirt(int(around), int(rings), body.waist_radius, body.hem_radius, body.length,
-                  waist_center=(0.0, 0.0, 0.0), flat_rest_bend=False)
+                  waist_center=(0.0, 0.0, 0.0), flat_rest_bend=flat)
     R0, p0 = body.waist_rot[0], body.waist_pos[0]
     X = p0 + local.rest_positions @ R0.T
-    mesh = ClothMesh(X, local.triangles, local.tri_uv, local.tags, flat_rest_bend=False)
+    mesh = ClothMesh(X, local.triangles, local.tri_uv, local.tags, flat_rest_bend=flat)
     return mesh, local.rest_positions[local.tags["waistband"]].copy()
 
 
-def skirt_model_rig(body: SkirtBody, times: np.ndarray, rings: int, around: int, settle_s: float
-                    ) -> tuple[ClothMesh, DrivenVertices, float, Colliders]:
+def skirt_model_rig(body: SkirtBody, times: np.ndarray, rings: int, around: int, settle_s: float,
+                    rest_bend: str = "cone") -> tuple[ClothMesh, DrivenVertices, float, Colliders]:
     """Mesh, waistband driver and leg colliders for the estimator's skirt.
 
     The body stands still in its frame-0 pose for ``settle_s`` before the first frame (the skirt
@@ -144,6 +155,7 @@ def skirt_model_rig(body: SkirtBody, times: np.ndarray, rings: int, around: int,
         times: (T,) frame times, seconds.
         rings, around: model resolution.
         settle_s: rest before ``times[0]``, seconds (> 0).
+        rest_bend: bending rest state (:func:`skirt_model_mesh`).
 
     Returns:
         ``(mesh, driver, t0, colliders)`` with ``t0 = times[0] - settle_s``.
@@ -153,7 +165,7 @@ def skirt_model_rig(body: SkirtBody, times: np.ndarray, rings: int, around: int,
         raise RigError(f"skirt body has {body.n_frames} frames but {t.shape} times were given")
     if not settle_s > 0:
         raise RigError(f"settle_s must be > 0 s, got {settle_s}")
-    mesh, local = skirt_model_mesh(body, rings, around)
+    mesh, local = skirt_model_mesh(body, rings, around, rest_bend)
     t0 = float(t[0] - settle_s)
     tt = np.concatenate([[t0, t[0] - 1e-3 * settle_s], t])
     pos = np.concatenate([body.waist_pos[:1], body.waist_pos[:1], body.waist_pos])

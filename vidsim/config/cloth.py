@@ -275,7 +275,9 @@ class ClothSkirtConfig:
     Reality (``cloth.reality.object=skirt``) dresses the skipping body ``motion`` (a name of
     :data:`vidsim.reality.cloth.SKIRT_MOTIONS`) with a MuJoCo skirt of ``rings`` x ``around``
     vertices, filmed for ``n_frames`` at ``fps`` in the swatch's studio (same calibrated camera and
-    projector). The estimator's skirt has ``model_rings`` x ``model_around`` vertices.
+    projector). The estimator's skirt has ``model_rings`` x ``model_around`` vertices and the
+    bending rest state ``model_rest_bend`` (``cone``: the sewn cone; ``flat``: the fabric's own flat
+    rest state, the seam holding it in the cone).
     ``video_frames``: frames of the side-by-side videos (0 = all). ``fabrics``/``params``/``footage``:
     inputs of ``skirt_cloth`` (Snakemake fills them): per fabric its ``params.yaml`` and skirt footage.
     """
@@ -287,6 +289,7 @@ class ClothSkirtConfig:
     around: int = 28
     model_rings: int = 8
     model_around: int = 24
+    model_rest_bend: str = "cone"
     video_frames: int = 0
     fabrics: list[str] = field(default_factory=list)
     params: list[str] = field(default_factory=list)

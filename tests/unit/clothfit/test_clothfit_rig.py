@@ -58,3 +58,18 @@ def test_skirt_body_round_trips_through_meta_and_rejects_bad_fields():
         SkirtBody.from_meta(bad, "meta.yaml")
     with pytest.raises(RigError, match="lacks"):
         SkirtBody.from_meta({"legs": []}, "meta.yaml")
+
+
+def test_skirt_rest_bend_cone_keeps_the_cone_flat_resists_its_curvature():
+    from vidsim.clothfit.rig import skirt_model_mesh
+
+    body, _ = _body(3)
+    cone, _ = skirt_model_mesh(body, 4, 12, "cone")
+    flat, _ = skirt_model_mesh(body, 4, 12, "flat")
+    # same start (the sewn cone), different bending rest state
+    assert np.array_equal(cone.rest_positions, flat.rest_positions)
+    assert np.all(flat.bend_rest == 0.0)
+    # the cone's edges around the skirt are bent at rest by about 2 pi / around in total per ring
+    assert np.abs(cone.bend_rest).max() > 0.2
+    with pytest.raises(RigError, match="model_rest_bend = 'curved'.*cone.*flat"):
+        skirt_model_mesh(body, 4, 12, "curved")
