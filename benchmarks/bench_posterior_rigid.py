@@ -17,6 +17,7 @@ approximation N(mode, (w H)^-1) of the noise calibration instead (cheap). ``--di
 samples those gap-library effects as nuisance parameters (structured discrepancy,
 :class:`vidsim.posterior.rigid.DiscrepancyConfig`) for every noise model; the 14 parameters are then
 scored on their marginal (Laplace: the Gaussian truncated to the nuisance prior, by rejection).
+``--noise sandwich_holdout:4``: the held-out inflation from 4 consecutive blocks (``NoiseConfig.holdout_blocks``).
 Single thread.
 """
 
@@ -49,6 +50,12 @@ from vidsim.rigid.fit import fit_throw  # noqa: E402
 from vidsim.video.camera import PinholeCamera  # noqa: E402
 
 
+def noise_config(model: str) -> NoiseConfig:
+    """``sandwich_holdout:4`` -> the holdout noise model comparing 4 consecutive blocks."""
+    name, _, k = model.partition(":")
+    return NoiseConfig(model=name, holdout_blocks=int(k) if k else 2)
+
+
 def label(model: str, effects: tuple[str, ...], signed: bool = False) -> str:
     """Row name of a noise model with the nuisance effects (``sandwich+quadratic_drag``, ``+signed``)."""
     return "+".join((model,) + tuple(effects) + (("signed",) if signed and effects else ()))
@@ -72,7 +79,7 @@ def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, 
     tp = to_natural(truth_params(truth, fit.q0, body.symmetries))
     for i, m in enumerate(models):
         t = time.perf_counter()
-        nm = calibrate_noise(loss, p0, NoiseConfig(model=m), np.random.default_rng(0))
+        nm = calibrate_noise(loss, p0, noise_config(m), np.random.default_rng(0))
         if effects:
             S = to_natural(laplace_samples(nm, disc.bounds(), 20000, np.random.default_rng(1)))
             cov = covered(S[:, :14], tp, 90.0)
@@ -124,7 +131,7 @@ def run_throw(seed: int, drag: float, models: list[str], scfg: SamplerConfig, la
     rows = []
     for m in models:
         post = rigid_posterior(d["masks"][fit.frames], fit.times, cam, body, fit.params, fit.q0, fit.t0,
-                               noise=NoiseConfig(model=m), sampler=scfg,
+                               noise=noise_config(m), sampler=scfg,
                                discrepancy=DiscrepancyConfig(effects=tuple(effects), signed=signed,
                                                              refit_nfev=refit_nfev))
         tp = to_natural(truth_params(truth, post.q_base, body.symmetries))

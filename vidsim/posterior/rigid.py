@@ -120,6 +120,8 @@ class NoiseConfig:
         design_iters: refinements of the design scale to the posterior's width.
         design_width: design standard deviation in posterior standard deviations.
         hac_bandwidth: Newey-West lag window, frames (0: ``T / 4``).
+        holdout_blocks: consecutive blocks compared by ``sandwich_holdout`` (2: the two halves;
+            :func:`holdout_inflation`).
     """
 
     model: str = "sandwich"
@@ -127,10 +129,13 @@ class NoiseConfig:
     design_iters: int = 2
     design_width: float = 1.5
     hac_bandwidth: int = 0
+    holdout_blocks: int = 2
 
     def validate(self) -> None:
         if self.model not in NOISE_MODELS:
             raise PosteriorError(f"noise.model = {self.model!r}: expected one of {NOISE_MODELS}")
+        if int(self.holdout_blocks) < 2:
+            raise PosteriorError(f"noise.holdout_blocks = {self.holdout_blocks}: need >= 2 consecutive blocks")
         if self.n_design < 150:
             raise PosteriorError(f"noise.n_design = {self.n_design}: need >= 150 for 14-D quadratic surfaces")
         if self.design_iters < 1 or not (self.design_width > 0) or self.hac_bandwidth < 0:
@@ -348,28 +353,39 @@ def hac_covariance(scores: np.ndarray, bandwidth: int) -> np.ndarray:
     return J
 
 
-def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float) -> float:
-    """Variance inflation from held-out frames: do the two halves of the throw agree?
+def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float, blocks: int = 2) -> float:
+    """Variance inflation from held-out frames: do consecutive blocks of the throw agree?
 
-    Each half (first / second half of the frames) has its own mode ``z_h = -H_h^-1 g_h`` and, under
-    the calibrated likelihood, covariance ``(w H_h)^-1``. Without model discrepancy the statistic
-    ``chi2 = d^T (C_1 + C_2)^-1 d`` of ``d = z_1 - z_2`` is about ``D``; a missing effect (air drag)
-    makes early and late frames disagree. Returns ``max(1, chi2 / D)``.
+    The frames are cut into ``blocks`` consecutive blocks. Each block ``b`` has its own mode
+    ``z_b = -H_b^-1 g_b`` and the rest of the throw its mode ``z_-b``, with covariances
+    ``(w H_b)^-1`` and ``(w H_-b)^-1`` under the calibrated likelihood. Without model discrepancy the
+    statistic ``chi2_b = d_b^T (C_b + C_-b)^-1 d_b`` of ``d_b = z_b - z_-b`` is about ``D``; a missing
+    effect (air drag) makes early and late frames disagree. Returns ``max(1, mean_b chi2_b / D)``.
+    With two blocks (the default) this is the comparison of the first and the second half; more
+    blocks average more comparisons (a less noisy estimate of the same inflation, each held-out
+    block shorter).
 
     Args:
         scores: (T, D) per-frame score at the joint mode; hessians: (T, D, D) per-frame Hessians.
         w: calibrated learning rate, 1/pixel.
+        blocks: number of consecutive blocks (2 <= blocks <= T).
     """
     T, D = scores.shape
-    h = T // 2
-    modes, covs = [], []
-    for sl in (slice(0, h), slice(h, T)):
-        Hh = _pd(hessians[sl].sum(0), 1e-3)
-        modes.append(-np.linalg.solve(Hh, scores[sl].sum(0)))
-        covs.append(np.linalg.inv(w * Hh))
-    d = modes[0] - modes[1]
-    chi2 = float(d @ np.linalg.solve(covs[0] + covs[1], d))
-    return max(1.0, chi2 / D)
+    if not 2 <= int(blocks) <= T:
+        raise PosteriorError(f"noise.holdout_blocks = {blocks}: need 2 <= blocks <= {T} (the fitted frames)")
+    edges = np.linspace(0, T, int(blocks) + 1).round().astype(int)
+    chi2 = []
+    for b in range(int(blocks)):
+        lo, hi = edges[b], edges[b + 1]
+        Hin = _pd(hessians[lo:hi].sum(0), 1e-3)
+        Hout = _pd(hessians[:lo].sum(0) + hessians[hi:].sum(0), 1e-3)
+        g_in, g_out = scores[lo:hi].sum(0), scores[:lo].sum(0) + scores[hi:].sum(0)
+        d = -np.linalg.solve(Hin, g_in) + np.linalg.solve(Hout, g_out)
+        C = np.linalg.inv(w * Hin) + np.linalg.inv(w * Hout)
+        chi2.append(float(d @ np.linalg.solve(C, d)))
+        if int(blocks) == 2:  # the two comparisons are the same one
+            break
+    return max(1.0, float(np.mean(chi2)) / D)
 
 
 def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = None,
@@ -445,7 +461,7 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
             w = D / float(np.trace(np.linalg.solve(H, J)))
         inflation = 1.0
         if cfg.model == "sandwich_holdout":
-            inflation = holdout_inflation(gk, Hks, w)
+            inflation = holdout_inflation(gk, Hks, w, cfg.holdout_blocks)
             w /= inflation
         A_used = A.copy()
         center = center + A @ zs

@@ -108,3 +108,23 @@ def test_holdout_inflation_detects_a_drifting_misfit(rng) -> None:
     bad.y = bad.y + np.linspace(-1, 1, 400) * 30.0 * (bad.A[:, 0] * DESIGN_SCALE0[0] / 0.05)  # unmodelled term
     nb = calibrate_noise(bad, np.zeros(N_PARAM), NoiseConfig("sandwich_holdout", n_design=300, design_iters=1), rng)
     assert nb.inflation > 10.0
+
+
+def test_holdout_blocks_two_is_the_halves_and_more_blocks_see_a_drift_less(rng) -> None:
+    from vidsim.posterior.rigid import PosteriorError, holdout_inflation
+
+    T, D = 60, 3
+    H = np.stack([np.eye(D) * (1.0 + 0.1 * k % 3) for k in range(T)])
+    g = rng.normal(size=(T, D))
+    # two blocks: the first half's mode against the second's, as documented
+    h = T // 2
+    d = -np.linalg.solve(H[:h].sum(0), g[:h].sum(0)) + np.linalg.solve(H[h:].sum(0), g[h:].sum(0))
+    C = np.linalg.inv(H[:h].sum(0)) + np.linalg.inv(H[h:].sum(0))
+    assert holdout_inflation(g, H, 1.0, 2) == pytest.approx(max(1.0, d @ np.linalg.solve(C, d) / D))
+    # a misfit drifting linearly over the throw: each frame's own mode moves along the first axis
+    drift = g.copy()
+    drift[:, 0] -= H[:, 0, 0] * np.linspace(-1, 1, T) * 2.0
+    k2, k6 = holdout_inflation(drift, H, 1.0, 2), holdout_inflation(drift, H, 1.0, 6)
+    assert k2 > 10.0 and k6 > 1.0 and k6 < k2  # shorter blocks see less of a slow drift
+    with pytest.raises(PosteriorError, match="holdout_blocks = 1"):
+        holdout_inflation(g, H, 1.0, 1)
