@@ -62,6 +62,22 @@ def test_twin_select_profile_score_and_method_comparison(study):
         _run("vidsim.cli.cloth_select", *base, f"paths.out={sel}",
              f"cloth.select.fits=[{res / 'cloth' / d / 'twin_exp1' / 'fit.yaml'},{res / 'cloth' / d / 'twin_exp2' / 'fit.yaml'}]",
              f"cloth.select.footage=[{fp['exp1']},{fp['exp2']}]")
+    # the joint polish of the selection: never worse on E1+E2, logged, and a rerun replays its log
+    pol = res / "cloth" / "select_polish" / "twin"
+    fits = f"cloth.select.fits=[{res / 'cloth' / 'fit' / 'twin_exp1' / 'fit.yaml'},{res / 'cloth' / 'fit' / 'twin_exp2' / 'fit.yaml'}]"
+    for _ in range(2):
+        _run("vidsim.cli.cloth_select", *base, f"paths.out={pol}", fits, f"cloth.select.footage=[{fp['exp1']},{fp['exp2']}]",
+             "cloth.select.polish_budget=6")
+        pdoc = yaml.safe_load((pol / "params.yaml").read_text())
+        if _ == 0:
+            first = pdoc
+    sel0 = yaml.safe_load((res / "cloth" / "select" / "twin" / "params.yaml").read_text())
+    assert pdoc["selected"]["total"] == sel0["total"] and pdoc["selected"]["params"] == sel0["params"]
+    assert pdoc["polish"]["total_after"] <= pdoc["polish"]["total_before"] == sel0["total"]
+    assert abs(pdoc["total"] - sum(pdoc["errors"].values())) < 1e-9 * pdoc["total"]
+    assert pdoc["chosen"].startswith("polish(") == pdoc["polish"]["improved"]
+    assert len((pol / "polish_evals.jsonl").read_text().splitlines()) >= 6
+    assert pdoc["params"] == first["params"] and pdoc["total"] == first["total"]  # replayed, not re-drawn
     joint = res / "cloth" / "fit_joint" / "twin"
     out = _run("vidsim.cli.cloth_fit", *base, f"cloth.fit.footage=[{fp['exp1']},{fp['exp2']}]", f"paths.out={joint}")
     assert "cloth_twin_exp1+cloth_twin_exp2" in out

@@ -207,10 +207,21 @@ class ClothFitConfig:
 
 @dataclass
 class ClothSelectConfig:
-    """Inputs of ``select_cloth`` (Snakemake fills them): the trials' fit.yaml files and footage folders."""
+    """``select_cloth``: inputs (Snakemake fills them: the trials' fit.yaml files and footage
+    folders) and the optional joint polish of the selected set.
+
+    ``polish_budget`` > 0: after the cross-trial selection, a short annealing on E1 + E2 (all trials
+    at once) started at the selected set: temperature ``polish_t0`` times the selected E1 + E2,
+    simplex edge ``polish_step`` in the unit cube, evaluations logged to ``polish_evals.jsonl`` in
+    the output folder (a killed stage resumes). The polished set replaces the selection only if its
+    E1 + E2 is lower. 0: the seed's procedure (selection only).
+    """
 
     fits: list[str] = field(default_factory=list)
     footage: list[str] = field(default_factory=list)
+    polish_budget: int = 0
+    polish_t0: float = 0.02
+    polish_step: float = 0.08
 
 
 @dataclass
