@@ -17,7 +17,8 @@ approximation N(mode, (w H)^-1) of the noise calibration instead (cheap). ``--di
 samples those gap-library effects as nuisance parameters (structured discrepancy,
 :class:`vidsim.posterior.rigid.DiscrepancyConfig`) for every noise model; the 14 parameters are then
 scored on their marginal (Laplace: the Gaussian truncated to the nuisance prior, by rejection).
-``--noise sandwich_holdout:4``: the held-out inflation from 4 consecutive blocks (``NoiseConfig.holdout_blocks``).
+``--noise sandwich_holdout:4``: the held-out inflation from 4 consecutive blocks (``NoiseConfig.holdout_blocks``);
+``sandwich_holdout@0.9``: its upper 90 % confidence bound (``NoiseConfig.holdout_confidence``).
 Single thread.
 """
 
@@ -51,9 +52,11 @@ from vidsim.video.camera import PinholeCamera  # noqa: E402
 
 
 def noise_config(model: str) -> NoiseConfig:
-    """``sandwich_holdout:4`` -> the holdout noise model comparing 4 consecutive blocks."""
+    """``sandwich_holdout:4`` -> the holdout noise model comparing 4 consecutive blocks;
+    ``sandwich_holdout@0.9`` -> the halves' inflation at its upper 90 % confidence bound."""
+    model, _, c = model.partition("@")
     name, _, k = model.partition(":")
-    return NoiseConfig(model=name, holdout_blocks=int(k) if k else 2)
+    return NoiseConfig(model=name, holdout_blocks=int(k) if k else 2, holdout_confidence=float(c) if c else 0.0)
 
 
 def label(model: str, effects: tuple[str, ...], signed: bool = False) -> str:

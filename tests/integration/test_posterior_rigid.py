@@ -105,3 +105,10 @@ def test_stage_bad_discrepancy_is_one_line(case, arg: str, what: str) -> None:
     r = _run(root, arg)
     assert r.returncode == 2 and "posterior.rigid.discrepancy" in r.stderr and what in r.stderr, r.stderr[-500:]
     assert "Traceback" not in r.stderr
+
+
+def test_stage_bad_holdout_confidence_is_one_line(case) -> None:
+    root, _, _ = case
+    r = _run(root, "posterior.rigid.holdout_confidence=1.5")
+    assert r.returncode == 2 and "posterior.rigid" in r.stderr and "holdout_confidence = 1.5" in r.stderr, r.stderr[-500:]
+    assert "Traceback" not in r.stderr

@@ -71,7 +71,11 @@ def run(cfg: DictConfig) -> None:
             if i in set(fit.distinct)] if fit.distinct else [
         {"params": c.params, "quaternion": c.q_base} for c in fit.alternatives]
     noise = NoiseConfig(model=rc.noise, n_design=rc.n_design, design_iters=rc.design_iters,
-                        hac_bandwidth=rc.hac_bandwidth)
+                        hac_bandwidth=rc.hac_bandwidth, holdout_confidence=float(rc.holdout_confidence))
+    try:
+        noise.validate()
+    except PosteriorError as e:
+        raise ConfigError(f"posterior.rigid ({e})") from None
     prior = RigidPriorConfig(rc.prior_position_m, rc.prior_rotation_deg, rc.prior_velocity_mps,
                              rc.prior_omega_radps, rc.prior_gravity_deg)
     scfg = SamplerConfig(n_walkers=rc.n_walkers, chunk=rc.chunk, min_steps=rc.min_steps, max_steps=rc.max_steps,

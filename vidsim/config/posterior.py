@@ -17,6 +17,9 @@ class PosteriorRigidConfig:
         n_design: local-design evaluations per refinement of the noise calibration.
         design_iters: refinements of the design to the posterior's scale.
         hac_bandwidth: Newey-West lag window, frames (0: a quarter of the fitted frames).
+        holdout_confidence: ``sandwich_holdout`` only: 0 inflates by the point estimate of the
+            halves' disagreement (chi2 / D); c in (0, 1) by its upper c-confidence bound
+            (chi2 / chi2_D quantile 1 - c), allowing for the estimate's scatter (docs/posterior.md).
         discrepancy: structured model discrepancy: effects of the gap library sampled with the 14
             parameters as nuisance parameters, each with a uniform prior from 0 (off) to its upper
             bound (``quadratic_drag`` 5 kg/m^3, ``linear_drag`` 1 1/s, ``angular_drag`` 1 1/s;
@@ -44,6 +47,7 @@ class PosteriorRigidConfig:
     n_design: int = 400
     design_iters: int = 2
     hac_bandwidth: int = 0
+    holdout_confidence: float = 0.0
     discrepancy: list[str] = field(default_factory=list)
     discrepancy_upper: dict[str, float] = field(default_factory=dict)
     discrepancy_refit_nfev: int = 15

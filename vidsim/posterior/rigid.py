@@ -122,6 +122,8 @@ class NoiseConfig:
         hac_bandwidth: Newey-West lag window, frames (0: ``T / 4``).
         holdout_blocks: consecutive blocks compared by ``sandwich_holdout`` (2: the two halves;
             :func:`holdout_inflation`).
+        holdout_confidence: 0: the inflation is the point estimate ``chi2 / D``; c in (0, 1): its
+            upper c-confidence bound (:func:`holdout_inflation`).
     """
 
     model: str = "sandwich"
@@ -130,12 +132,16 @@ class NoiseConfig:
     design_width: float = 1.5
     hac_bandwidth: int = 0
     holdout_blocks: int = 2
+    holdout_confidence: float = 0.0
 
     def validate(self) -> None:
         if self.model not in NOISE_MODELS:
             raise PosteriorError(f"noise.model = {self.model!r}: expected one of {NOISE_MODELS}")
         if int(self.holdout_blocks) < 2:
             raise PosteriorError(f"noise.holdout_blocks = {self.holdout_blocks}: need >= 2 consecutive blocks")
+        if not (0 <= float(self.holdout_confidence) < 1) or (self.holdout_confidence and int(self.holdout_blocks) != 2):
+            raise PosteriorError(f"noise.holdout_confidence = {self.holdout_confidence}: need 0 (point estimate) or "
+                                 "0 < c < 1 with holdout_blocks = 2")
         if self.n_design < 150:
             raise PosteriorError(f"noise.n_design = {self.n_design}: need >= 150 for 14-D quadratic surfaces")
         if self.design_iters < 1 or not (self.design_width > 0) or self.hac_bandwidth < 0:
@@ -353,15 +359,18 @@ def hac_covariance(scores: np.ndarray, bandwidth: int) -> np.ndarray:
     return J
 
 
-def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float, blocks: int = 2) -> float:
+def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float, blocks: int = 2,
+                      confidence: float = 0.0) -> float:
     """Variance inflation from held-out frames: do consecutive blocks of the throw agree?
 
     The frames are cut into ``blocks`` consecutive blocks. Each block ``b`` has its own mode
     ``z_b = -H_b^-1 g_b`` and the rest of the throw its mode ``z_-b``, with covariances
     ``(w H_b)^-1`` and ``(w H_-b)^-1`` under the calibrated likelihood. Without model discrepancy the
     statistic ``chi2_b = d_b^T (C_b + C_-b)^-1 d_b`` of ``d_b = z_b - z_-b`` is about ``D``; a missing
-    effect (air drag) makes early and late frames disagree. Returns ``max(1, mean_b chi2_b / D)``.
-    With two blocks (the default) this is the comparison of the first and the second half; more
+    effect (air drag) makes early and late frames disagree. Returns ``max(1, mean_b chi2_b / D)``,
+    the point estimate of ``lambda`` in ``chi2 ~ lambda chi2_D``; with ``confidence`` c in (0, 1) the
+    upper c-confidence bound ``chi2 / chi2_D.ppf(1 - c)`` instead (two blocks only), which allows
+    for the estimate's own scatter (relative sd ``sqrt(2 / D)``, 37 % for D = 15). With two blocks (the default) this is the comparison of the first and the second half; more
     blocks average more comparisons (a less noisy estimate of the same inflation, each held-out
     block shorter).
 
@@ -369,6 +378,7 @@ def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float, blocks
         scores: (T, D) per-frame score at the joint mode; hessians: (T, D, D) per-frame Hessians.
         w: calibrated learning rate, 1/pixel.
         blocks: number of consecutive blocks (2 <= blocks <= T).
+        confidence: 0 for the point estimate, else the one-sided confidence of the upper bound.
     """
     T, D = scores.shape
     if not 2 <= int(blocks) <= T:
@@ -385,6 +395,12 @@ def holdout_inflation(scores: np.ndarray, hessians: np.ndarray, w: float, blocks
         chi2.append(float(d @ np.linalg.solve(C, d)))
         if int(blocks) == 2:  # the two comparisons are the same one
             break
+    if confidence:
+        from scipy.stats import chi2 as chi2_dist
+
+        if not (0 < confidence < 1) or int(blocks) != 2:
+            raise PosteriorError(f"noise.holdout_confidence = {confidence}: need 0 < c < 1 (with holdout_blocks = 2)")
+        return max(1.0, chi2[0] / float(chi2_dist.ppf(1.0 - confidence, D)))
     return max(1.0, float(np.mean(chi2)) / D)
 
 
@@ -461,7 +477,7 @@ def calibrate_noise(loss: FrameLoss, p0: np.ndarray, cfg: NoiseConfig | None = N
             w = D / float(np.trace(np.linalg.solve(H, J)))
         inflation = 1.0
         if cfg.model == "sandwich_holdout":
-            inflation = holdout_inflation(gk, Hks, w, cfg.holdout_blocks)
+            inflation = holdout_inflation(gk, Hks, w, cfg.holdout_blocks, cfg.holdout_confidence)
             w /= inflation
         A_used = A.copy()
         center = center + A @ zs

@@ -128,3 +128,25 @@ def test_holdout_blocks_two_is_the_halves_and_more_blocks_see_a_drift_less(rng) 
     assert k2 > 10.0 and k6 > 1.0 and k6 < k2  # shorter blocks see less of a slow drift
     with pytest.raises(PosteriorError, match="holdout_blocks = 1"):
         holdout_inflation(g, H, 1.0, 1)
+
+
+def test_holdout_confidence_bound_is_the_chi2_quantile_of_the_halves_statistic(rng) -> None:
+    from scipy.stats import chi2 as chi2_dist
+
+    from vidsim.posterior.rigid import PosteriorError, holdout_inflation
+
+    T, D = 40, 4
+    H = np.stack([np.eye(D)] * T)
+    g = rng.normal(size=(T, D))
+    g[:, 1] -= np.linspace(-1, 1, T) * 3.0  # a drift, so the inflation is above its floor of 1
+    point = holdout_inflation(g, H, 1.0)
+    upper = holdout_inflation(g, H, 1.0, 2, 0.9)
+    assert point > 1.0
+    # same statistic, divided by the 10 % quantile of chi2_D instead of its mean D
+    assert upper == pytest.approx(point * D / chi2_dist.ppf(0.1, D))
+    assert holdout_inflation(g, H, 1.0, 2, 0.5) == pytest.approx(point * D / chi2_dist.ppf(0.5, D))
+    for bad in (1.0, -0.1):
+        with pytest.raises(PosteriorError, match="holdout_confidence"):
+            holdout_inflation(g, H, 1.0, 2, bad)
+    with pytest.raises(PosteriorError, match="holdout_confidence"):
+        holdout_inflation(g, H, 1.0, 3, 0.9)
