@@ -112,7 +112,7 @@ def main() -> None:
              f"cloth.fit.budget={a.budget}", f"cloth.fit.grid_levels={a.grid_levels}", "cloth.fit.n_candidates=2"]
     # posteriors of other settings than the default ``posterior=quick`` go to their own folder
     # (``twin__<overrides>``) beside it, on the same realities and fits
-    ptag = "" if a.posterior_hydra == "posterior=quick" else "__" + (re.sub(r"[^A-Za-z0-9=.-]+", "_", a.posterior_hydra) or "default")
+    ptag = "" if a.posterior_hydra == "posterior=quick" else "__" + (re.sub(r"[^A-Za-z0-9.-]+", "_", a.posterior_hydra) or "default")
     rows = []
     for i in range(a.first, a.first + a.cases):
         R = root / f"case{i}"

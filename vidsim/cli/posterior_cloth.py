@@ -91,7 +91,8 @@ def check_figure(check: dict, w: float, path: Path) -> None:
                  f"= {check['max_abs_error_logp']:.2f} log-density units "
                  f"({check['max_abs_error_logp_offset_free']:.2f} offset-free), w = {w:.3g}\n"
                  f"loss roughness (GP nugget) sd {check['roughness_sd']:.3g} = {check['roughness_sd_logp']:.2f} "
-                 "log-density units", fontsize=8)
+                 "log-density units" + ("\nNOT RELIABLE: " + "; ".join(check["problems"]) if check.get("problems") else ""),
+                 fontsize=8)
     save_figure(fig, path)
 
 
@@ -215,6 +216,9 @@ def run(cfg: DictConfig) -> None:
           f"ESS {diag['ess']:.0f}, surrogate max error {check['max_abs_error_logp']:.3g} log-density units "
           f"(ok {check['ok']}, roughness sd {check['roughness_sd_logp']:.3g}, consistent "
           f"{check['consistent_with_roughness']}), multimodal {diag['multimodal']}, {total_s:.0f} s", flush=True)
+    if check.get("problems"):
+        print("posterior_cloth: WARNING: the surrogate posterior is not reliable here: " + "; ".join(check["problems"])
+              + " (posterior.yaml: surrogate_check.problems)", flush=True)
 
 
 main = stage_app("posterior_cloth", run)

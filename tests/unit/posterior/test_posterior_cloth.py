@@ -125,6 +125,20 @@ def test_recovers_the_known_gaussian_posterior(linear_run):
     assert ck["n_draws"] == 50 and ck["ok"] and ck["max_abs_error_logp"] < 0.5
     Lt = np.array([obj.loss(u) for u in np.asarray(ck["draws"])])
     assert np.allclose(Lt, ck["loss_true"])
+    assert ck["problems"] == []
+
+
+def test_surrogate_guard_flags_a_nugget_or_offset_far_beyond_the_measured_roughness():
+    from vidsim.posterior.cloth import ROUGHNESS_GUARD, surrogate_problems
+
+    # the coverage study's 24 posteriors: nugget 0.8-5.2 x and median error <= 2 x the roughness
+    assert surrogate_problems(11.2, 2.15, 2.35) == []
+    assert surrogate_problems(10.3, 12.3, -24.0) == []
+    assert surrogate_problems(5.0, 0.0, 1e6) == []  # roughness not measured: no test
+    # the full-setting linen run: nugget sd 829 and median error -15870 against a roughness of 2.9
+    p = surrogate_problems(829.0, 2.9, -15870.0)
+    assert len(p) == 2 and "nugget sd 829" in p[0] and "-1.587e+04" in p[1]
+    assert surrogate_problems(ROUGHNESS_GUARD * 2.9 * 1.01, 2.9, 0.0) != []
 
 
 def test_multimodality_flag_from_fit_candidates(linear_run):
@@ -193,3 +207,16 @@ def test_roughness_is_measured_and_widens_the_posterior(tmp_path):
     assert res.w < wt["w_sandwich"]
     # the check's errors are explained by the roughness
     assert res.check["consistent_with_roughness"]
+
+
+def test_determined_floor_keeps_a_flat_direction_from_collapsing_the_scale():
+    # two well-determined directions (curvature 2, score variance 2: w = 1 there) and one flat one
+    H = np.diag([2.0, 2.0, 1e-9])
+    J = np.diag([2.0, 2.0, 1.0])
+    w_all, _ = weight_from_sandwich(H, J)
+    w_det, Hpd = weight_from_sandwich(H, J, determined_floor=1e-3)
+    assert w_all < 1e-6  # the flat direction's score noise over a floored curvature dominates the trace
+    assert w_det == pytest.approx(1.0)
+    assert np.all(np.linalg.eigvalsh(Hpd) > 0)
+    # without a flat direction the option changes nothing
+    assert weight_from_sandwich(H[:2, :2], J[:2, :2], determined_floor=1e-3)[0] == weight_from_sandwich(H[:2, :2], J[:2, :2])[0]
