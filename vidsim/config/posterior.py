@@ -87,8 +87,8 @@ class PosteriorClothConfig:
         roughness_k: the roughness term of the likelihood scale, ``w_r = D / (2 roughness_k sd)``,
             combined with the sandwich scale as variances (0: sandwich only).
         determined_floor: the sandwich scale is calibrated only in the surrogate's eigen-directions
-            with curvature >= this fraction of the largest (0: all directions, the default; flat
-            directions can then drive the scale to 0, docs/posterior.md).
+            with curvature >= this fraction of the largest (0: all directions, where flat directions
+            can drive the scale to 0 for every direction; default 1e-5, measured in docs/posterior.md).
         max_cache: cached annealing evaluations per trial given to the surrogate (nearest informative first).
         clip_logp: targets clipped this many log-density units above the minimum.
         gp_restarts: random restarts of the GP hyperparameter fit.
@@ -114,7 +114,7 @@ class PosteriorClothConfig:
     n_jitter: int = 6
     jitter: float = 1e-3
     roughness_k: float = 1.0
-    determined_floor: float = 0.0
+    determined_floor: float = 1e-5
     max_cache: int = 300
     clip_logp: float = 30.0
     gp_restarts: int = 2

@@ -109,7 +109,7 @@ class ClothPosteriorSettings:
     n_jitter: int = 6
     jitter: float = 1e-3
     roughness_k: float = 1.0
-    determined_floor: float = 0.0
+    determined_floor: float = 1e-5
     max_cache: int = 300
     clip_logp: float = 30.0
     gp_restarts: int = 2
