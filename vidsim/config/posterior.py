@@ -96,6 +96,10 @@ class PosteriorClothConfig:
         check_tol: largest offset-free surrogate error accepted, log-density units.
         refine_rounds: times the check points join the training set and the chain is redrawn when the
             check fails.
+        max_true_evals: a refinement is skipped when it would take the stage's true evaluations
+            (design, jitter and checks, replayed ones included) past this count (0: no cap). The
+            per-fabric time budget in a form that resumes reproducibly: at the full setting a
+            true evaluation costs 2.7-4.5 CPU-s, the design and first check take 144.
         n_walkers, chunk, min_steps, max_steps, min_tau_multiple: emcee settings (converged only at
             >= min_tau_multiple autocorrelation times).
         multimodal_ratio: density ratio (to the mode) above which a distinct minimum is a mode.
@@ -121,6 +125,7 @@ class PosteriorClothConfig:
     n_check: int = 50
     check_tol: float = 1.0
     refine_rounds: int = 2
+    max_true_evals: int = 200
     n_walkers: int = 32
     chunk: int = 500
     min_steps: int = 1000

@@ -44,7 +44,8 @@ the surrogate's mode. **Check**: at ``n_check`` posterior draws the true objecti
 compared with the surrogate; the largest error is reported in loss units and in log-density units
 (``w |error|``, also with the median offset removed, which does not change the posterior). When
 it exceeds ``check_tol`` the check points join the training set and the chain is redrawn
-(``refine_rounds`` times at most); the last check is the one reported.
+(``refine_rounds`` times at most, and only while the true evaluations stay within
+``max_true_evals``); the last check is the one reported.
 
 **Multimodality**: distinct local minima of the surrogate (multistart from the best evaluated
 points, separated by a barrier of more than 1 log-density unit) and distinct candidates of the
@@ -116,6 +117,7 @@ class ClothPosteriorSettings:
     n_check: int = 50
     check_tol: float = 1.0
     refine_rounds: int = 1
+    max_true_evals: int = 0
     multimodal_ratio: float = 0.01
     distinct: float = 0.1
     sampler: SamplerConfig = field(default_factory=SamplerConfig)
@@ -124,6 +126,8 @@ class ClothPosteriorSettings:
     def validate(self, D: int) -> None:
         if self.noise not in ("sandwich", "sandwich_hac"):
             raise PosteriorError(f"posterior.cloth.noise = {self.noise!r}: expected 'sandwich' or 'sandwich_hac'")
+        if self.max_true_evals < 0:
+            raise PosteriorError(f"posterior.cloth.max_true_evals = {self.max_true_evals}: need >= 0 (0: no cap)")
         if self.design_rounds < 1 or self.n_check < 1 or self.refine_rounds < 0:
             raise PosteriorError("posterior.cloth: design_rounds and n_check must be >= 1, refine_rounds >= 0")
         if self.n_pairs and self.n_pairs < D + 1:
@@ -596,6 +600,12 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
             f"{check['consistent_with_roughness']}" + (f"; NOT RELIABLE: {'; '.join(problems)}" if problems else ""))
         # refining helps only where the surrogate misses beyond the loss's own roughness
         if check["ok"] or check["consistent_with_roughness"]:
+            break
+        n_true = len(truth.cache.store)
+        if k_ref < s.refine_rounds and s.max_true_evals and n_true + s.n_check > s.max_true_evals:
+            check["refinement_skipped"] = (f"budget: {n_true} true evaluations so far, a refinement needs "
+                                           f"{s.n_check} more, posterior.cloth.max_true_evals = {s.max_true_evals}")
+            say(f"refinement skipped ({check['refinement_skipped']})")
             break
 
     # ---------------------------------------------------------------- multimodality

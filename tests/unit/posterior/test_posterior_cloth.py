@@ -220,3 +220,26 @@ def test_determined_floor_keeps_a_flat_direction_from_collapsing_the_scale():
     assert np.all(np.linalg.eigvalsh(Hpd) > 0)
     # without a flat direction the option changes nothing
     assert weight_from_sandwich(H[:2, :2], J[:2, :2], determined_floor=1e-3)[0] == weight_from_sandwich(H[:2, :2], J[:2, :2])[0]
+
+
+class TiltedFrames(LinearFrames):
+    """The linear frames with a tilt the cached evaluations (plain linear) do not show: the first
+    surrogate is wrong where the chain goes, so its check fails and a refinement is wanted."""
+
+    def __call__(self, u):
+        out = super().__call__(u)
+        return FrameEval([f + 3.0 * (u[0] - 0.5) + 40.0 * (u[1] - 0.45) ** 2 for f in out.frames])
+
+
+def test_refinement_is_skipped_beyond_the_true_evaluation_cap(tmp_path):
+    obj = TiltedFrames()
+    kw = dict(max_steps=600, min_steps=600, chunk=200, refine_rounds=1, n_check=20)
+    free = cloth_posterior(obj, D, np.array([0.52, 0.43, 0.56]), obj.cache(), settings(**kw), tmp_path / "a")
+    assert free.check["refinement"] == 1  # the first check failed and one refinement ran
+    capped = cloth_posterior(obj, D, np.array([0.52, 0.43, 0.56]), obj.cache(),
+                             settings(max_true_evals=free.n_true_evals - 1, **kw), tmp_path / "b")
+    assert capped.check["refinement"] == 0 and "max_true_evals" in capped.check["refinement_skipped"]
+    assert capped.n_true_evals == free.n_true_evals - 20
+    assert not capped.check["ok"]  # the failed first check is what is reported, not hidden
+    with pytest.raises(Exception, match="max_true_evals"):
+        settings(max_true_evals=-1).validate(D)
