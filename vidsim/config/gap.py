@@ -37,6 +37,10 @@ class GapDiagnoseConfig:
         jitter_min_white: share of the fitted time errors' variance a cubic drift must leave.
         pairs: forward selection may name a second effect: while a gap beyond the floor remains
             after the first, screen again with it in the model and refit the best of the rest with it.
+        joint_pairs: when no single effect is named although a gap remains, refit the pairs of the
+            top_k screened candidates jointly and name a pair that closes min_closure and beats each
+            member alone by pair_min_gain (held-out closure).
+        pair_min_gain: held-out closure each member of a jointly named pair must add.
     """
 
     candidates: list[str] = field(default_factory=_all_effects)
@@ -51,6 +55,8 @@ class GapDiagnoseConfig:
     min_excess: float = 0.15
     jitter_min_white: float = 0.5
     pairs: bool = True
+    joint_pairs: bool = True
+    pair_min_gain: float = 0.2
 
 
 @dataclass

@@ -81,6 +81,11 @@ class DiagnoseConfig:
         jitter_min_white: time jitter is named only when at least this fraction of the variance
             of its fitted time errors is not explained by a cubic drift in time.
         pairs: forward selection may name a second effect (conditional screen, then joint refits).
+        joint_pairs: when no single candidate is named although a gap remains, refit every pair of
+            the ``top_k`` screened candidates jointly (two effects that each close a quarter of
+            the gap pass no single-effect test) and name a pair when it closes ``min_closure`` of
+            the held-out excess and beats each of its members alone by ``pair_min_gain``.
+        pair_min_gain: held-out closure each member of a jointly named pair must add.
     """
 
     candidates: list[str] = field(default_factory=lambda: list(RIGID_EFFECTS))
@@ -95,9 +100,13 @@ class DiagnoseConfig:
     min_excess: float = 0.15
     jitter_min_white: float = 0.5
     pairs: bool = True
+    joint_pairs: bool = True
+    pair_min_gain: float = 0.2
 
     def validate(self) -> None:
         """Raise :class:`GapError` naming the field when a setting is not usable."""
+        if not 0.0 <= self.pair_min_gain <= 1.0:
+            raise GapError(f"gap.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         for c in self.candidates:
             if c not in RIGID_EFFECTS:
                 raise GapError(f"gap.candidates: unknown effect {c!r}; the library has {sorted(RIGID_EFFECTS)}")
@@ -501,6 +510,43 @@ def _lag1(x: np.ndarray) -> float:
     return float(x[1:] @ x[:-1] / d) if d > 0 and len(x) > 2 else 1.0
 
 
+def joint_pair_search(pool: list[str], singles: dict[str, dict], judge, supported, cfg, note, floor: float,
+                      library=None) -> tuple[list[str], dict | None, dict[str, dict]]:
+    """Joint refits of every pair of ``pool`` (time jitter and stated aliases excluded: jitter is
+    judged on training frames, an alias pair is one effect twice). A pair is named when it passes
+    the single-effect rule (``supported``) as a whole and its held-out closure exceeds each
+    member's own by ``pair_min_gain``; of several, the one that closes most. Returns (named, in
+    the order of their single closures, largest first; the pair's refit, also stored in ``singles``
+    under ``"first+second"`` with the second's share of what the first alone left (the suite's
+    scoring and the figures read it there), or None; every pair's refit). ``floor``: the held-out
+    noise floor; ``library``: the effect specifications (aliases), :data:`RIGID_EFFECTS` by default."""
+    lib = RIGID_EFFECTS if library is None else library
+    out: dict[str, dict] = {}
+    best, best_c, best_key = [], -np.inf, ""
+    for i, a in enumerate(pool):
+        for b in pool[i + 1:]:
+            if "time_jitter" in (a, b) or a in lib[b].alias or b in lib[a].alias:
+                continue
+            res = judge((a, b))
+            c_pair = res["heldout_closure"]
+            c_a, c_b = (singles[e]["heldout_closure"] if e in singles else 0.0 for e in (a, b))
+            res["single_closures"] = {a: c_a, b: c_b}
+            res["supported"] = ok = bool(supported(res, b, None)
+                                         and c_pair - max(c_a, c_b) >= cfg.pair_min_gain)
+            out[f"{a}+{b}"] = res
+            note(f"joint refit {a}+{b}")
+            if ok and c_pair > best_c:
+                best, best_c, best_key = sorted((a, b), key=lambda e: -res["single_closures"][e]), c_pair, f"{a}+{b}"
+    if not best:
+        return [], None, out
+    prev = dict(out[best_key])
+    ho1 = singles[best[0]]["heldout_after_px"]
+    prev["closure_of_remaining"] = (ho1 - prev["heldout_after_px"]) / max(ho1 - floor, 1e-9)
+    prev["named_jointly"] = True
+    singles["+".join(best)] = prev
+    return best, prev, out
+
+
 def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, fit: dict,
                    cfg: DiagnoseConfig | None = None, progress=None) -> RigidDiagnosis:
     """Diagnose the gap between a rigid fit and its footage (blind: no truth).
@@ -703,6 +749,9 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
             break
         named.append(best)
         prev = refits["+".join(named)]
+    joint: dict[str, dict] = {}
+    if not named and gap_present and cfg.pairs and cfg.joint_pairs:
+        named, prev, joint = joint_pair_search(ranked[: cfg.top_k], refits, judge, supported, cfg, note, floor_mean)
     verdict = ("no gap beyond the noise floor" if not gap_present else
                ("explained by " + ", ".join(named)) if named else "none of the candidates explains the gap")
     # where
@@ -720,4 +769,5 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     return RigidDiagnosis(named, verdict, frames, train, test, gap_all, floor, screen, refits, where,
                           np.abs(rimg).sum(0), rimg.sum(0), theta_b, time.perf_counter() - t_start, n_renders,
                           {"gap_present": bool(gap_present), "heldout_excess_px": excess,
-                           "base_params": theta_b.tolist(), "conditional_screens": conditional})
+                           "base_params": theta_b.tolist(), "conditional_screens": conditional,
+                           "joint_pairs": joint})

@@ -87,3 +87,46 @@ def test_two_planted_effects_are_both_named_by_forward_selection():
     # the second effect closes most of what the first left, on held-out frames
     assert pair["supported"] and pair["closure_of_remaining"] >= 0.5
     assert d.extra["conditional_screens"], "the second effect comes from a conditional screen"
+
+
+def test_joint_pair_names_two_effects_only_when_each_adds_to_the_other():
+    """The fallback after no single effect was named: a pair is named when it closes half the
+    held-out excess and beats each member alone by pair_min_gain; jitter and aliases are never
+    paired; the named order follows the single closures."""
+    from vidsim.gap.rigid_diagnose import joint_pair_search
+
+    # held-out gap before 100 px, floor 20 px: after = 100 - 80 closure
+    singles = {k: {"heldout_closure": c, "heldout_after_px": 100 - 80 * c} for k, c in
+               {"angular_drag": 0.23, "com_offset": 0.28, "wind": 0.45, "time_jitter": 0.3, "time_rate": 0.2,
+                "gravity_scale": 0.2}.items()}
+    pair_closure = {("angular_drag", "com_offset"): 0.61, ("angular_drag", "wind"): 0.55,
+                    ("com_offset", "wind"): 0.52, ("gravity_scale", "time_rate"): 0.9}
+    judged = []
+
+    def judge(effs):
+        judged.append(tuple(effs))
+        c = pair_closure[tuple(effs)]
+        return {"heldout_closure": c, "heldout_after_px": 100 - 80 * c, "params": {}}
+
+    def supported(res, added, prev):
+        return res["heldout_closure"] >= 0.5
+
+    cfg = DiagnoseConfig()
+    named, prev, out = joint_pair_search(["angular_drag", "com_offset", "wind"], singles, judge, supported, cfg,
+                                         lambda s: None, 20.0)
+    # angular_drag+wind (0.55) and com_offset+wind (0.52) add less than 0.2 to wind's own 0.45
+    assert named == ["com_offset", "angular_drag"]
+    assert out["angular_drag+wind"]["supported"] is False and out["angular_drag+com_offset"]["supported"] is True
+    # the pair's refit is filed as "first+second", the second's share of what the first left
+    assert singles["com_offset+angular_drag"] is prev and prev["named_jointly"]
+    assert prev["closure_of_remaining"] == pytest.approx((0.61 - 0.28) / (1 - 0.28))
+    judged.clear()
+    named, prev, out = joint_pair_search(["time_jitter", "com_offset"], singles, judge, supported, cfg,
+                                         lambda s: None, 20.0)
+    assert named == [] and prev is None and judged == []  # jitter has its own rule, never in a joint pair
+    # time_rate and gravity_scale are stated aliases: never a pair
+    named, _, _ = joint_pair_search(["gravity_scale", "time_rate"], singles, judge, supported, cfg, lambda s: None,
+                                    20.0)
+    assert named == [] and judged == []
+    with pytest.raises(GapError, match="pair_min_gain"):
+        DiagnoseConfig(pair_min_gain=1.5).validate()
