@@ -60,7 +60,7 @@ from scipy.optimize import least_squares
 
 from vidsim.cloth import ClothParams
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup
-from vidsim.gap.rigid_diagnose import Problem as RigidProblem, score_screen
+from vidsim.gap.rigid_diagnose import Problem as RigidProblem, joint_pair_search, score_screen
 
 BAD_RESIDUAL = 1.0
 IMAGING = ("lens_k1", "motion_blur", "rolling_shutter", "time_offset", "time_rate")
@@ -79,6 +79,10 @@ class ClothDiagnoseConfig:
         top_k: screened candidates refitted; max_nfev: residual evaluations per refit.
         min_closure, min_excess: the naming rule (see :mod:`vidsim.gap.rigid_diagnose`).
         pairs: forward selection may name a second effect.
+        joint_pairs, pair_min_gain: when no single effect is named although a gap remains, refit
+            the pairs of the ``top_k`` screened candidates jointly and name a pair that closes
+            ``min_closure`` and beats each member alone by ``pair_min_gain`` (the rigid rule,
+            :func:`vidsim.gap.rigid_diagnose.joint_pair_search`).
         floor_resolution: vertices per side of the floor's twin of the fit (0: the model's own, so
             the floor is rendering, segmentation and noise; a finer mesh also counts the model's
             discretisation as irreducible, which is right for real fabric and wrong for a reality
@@ -109,6 +113,8 @@ class ClothDiagnoseConfig:
     min_closure: float = 0.5
     min_excess: float = 0.15
     pairs: bool = True
+    joint_pairs: bool = True
+    pair_min_gain: float = 0.2
     floor_resolution: int = 0
     base_nfev: int = 25
     floor_blur_px: float = 0.6
@@ -127,6 +133,8 @@ class ClothDiagnoseConfig:
             raise ClothGapError(f"gap.cloth.diagnose.holdout must be in [0.05, 0.6], got {self.holdout}")
         if not 0.1 <= self.scale <= 1.0:
             raise ClothGapError(f"gap.cloth.diagnose.scale must be in [0.1, 1], got {self.scale}")
+        if not 0.0 <= self.pair_min_gain <= 1.0:
+            raise ClothGapError(f"gap.cloth.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         if self.top_k < 1 or self.max_nfev < 1 or self.base_nfev < 1 or self.roi_px < 1:
             raise ClothGapError("gap.cloth.diagnose.top_k, max_nfev and roi_px must be >= 1")
         if self.floor_resolution != 0 and self.floor_resolution < 3:
@@ -651,6 +659,11 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             break
         named.append(best)
         prev = refits["+".join(named)]
+    joint: dict[str, dict] = {}
+    if not named and gap_present and cfg.pairs and cfg.joint_pairs:
+        named, prev, joint = joint_pair_search(ranked[: cfg.top_k], refits, lambda effs: judge(effs),
+                                               lambda res, added, p: supported(res, p), cfg, note, floor_mean,
+                                               CLOTH_EFFECTS)
     verdict = ("no gap beyond the noise floor" if not gap_present else
                ("explained by " + ", ".join(named)) if named else "none of the candidates explains the gap")
     # 7. where
@@ -686,6 +699,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
                            "base_params": {**{n: float(getattr(base.params(theta_b), n)) for n in estimated},
                                            "sil_bias_px": float(theta_b[base.n_est])},
                            "base_refit_nfev": info_b["nfev"], "conditional_screens": conditional,
+                           "joint_pairs": joint,
                            "camera_part": camera_part, "floor": floor_info, "skipped_candidates": skipped,
                            "fixed_step_s": dt, "model": {"resolution": int(resolution), "frame_stride": int(frame_stride),
                                                          "estimated": list(estimated)}})
