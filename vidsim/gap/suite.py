@@ -159,6 +159,10 @@ def true_strengths(truth: dict, body: BoxBody, nominal_times: np.ndarray | None 
     if e.get("magnus"):
         vol = float(np.sum(4.0 / 3.0 * np.pi * np.prod(body.half_sizes, axis=1)))
         out["magnus"] = float(e["magnus"]) * AIR_DENSITY * vol / body.mass
+    if e.get("exposure"):
+        out["motion_blur"] = float(e["exposure"]) ** 2  # the library's parameter is the exposure squared
+    if e.get("rolling_shutter"):
+        out["rolling_shutter"] = float(e["rolling_shutter"])
     return out
 
 
