@@ -41,6 +41,8 @@ class GapDiagnoseConfig:
             top_k screened candidates jointly and name a pair that closes min_closure and beats each
             member alone by pair_min_gain (held-out closure).
         pair_min_gain: held-out closure each member of a jointly named pair must add.
+        blur_thresholds: segmentation thresholds (fractions of the exposure) tried in a refit with
+            motion blur; the lowest training cost wins.
     """
 
     candidates: list[str] = field(default_factory=_all_effects)
@@ -57,6 +59,7 @@ class GapDiagnoseConfig:
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
+    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.35, 0.5])
 
 
 @dataclass

@@ -60,7 +60,7 @@ from scipy.optimize import least_squares
 
 from vidsim.cloth import ClothParams
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup
-from vidsim.gap.rigid_diagnose import Problem as RigidProblem, joint_pair_search, score_screen
+from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search, score_screen
 
 BAD_RESIDUAL = 1.0
 IMAGING = ("lens_k1", "motion_blur", "rolling_shutter", "time_offset", "time_rate")
@@ -83,6 +83,8 @@ class ClothDiagnoseConfig:
             the pairs of the ``top_k`` screened candidates jointly and name a pair that closes
             ``min_closure`` and beats each member alone by ``pair_min_gain`` (the rigid rule,
             :func:`vidsim.gap.rigid_diagnose.joint_pair_search`).
+        blur_thresholds: segmentation thresholds tried in a refit with motion blur (the rigid
+            rule, :func:`vidsim.gap.rigid_diagnose.blur_threshold_refit`).
         floor_resolution: vertices per side of the floor's twin of the fit (0: the model's own, so
             the floor is rendering, segmentation and noise; a finer mesh also counts the model's
             discretisation as irreducible, which is right for real fabric and wrong for a reality
@@ -115,6 +117,7 @@ class ClothDiagnoseConfig:
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
+    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.35, 0.5])
     floor_resolution: int = 0
     base_nfev: int = 25
     floor_blur_px: float = 0.6
@@ -133,6 +136,9 @@ class ClothDiagnoseConfig:
             raise ClothGapError(f"gap.cloth.diagnose.holdout must be in [0.05, 0.6], got {self.holdout}")
         if not 0.1 <= self.scale <= 1.0:
             raise ClothGapError(f"gap.cloth.diagnose.scale must be in [0.1, 1], got {self.scale}")
+        if not self.blur_thresholds or not all(0.0 < c < 1.0 for c in self.blur_thresholds):
+            raise ClothGapError(f"gap.cloth.diagnose.blur_thresholds must be fractions in (0, 1), got "
+                                f"{self.blur_thresholds}")
         if not 0.0 <= self.pair_min_gain <= 1.0:
             raise ClothGapError(f"gap.cloth.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         if self.top_k < 1 or self.max_nfev < 1 or self.base_nfev < 1 or self.roi_px < 1:
@@ -596,7 +602,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         th0 = theta_b if start is None else start
         th0 = np.r_[th0, np.zeros(m.n_params - len(th0))]
         th0, n_starts = effect_start(pe, th0, effects[-1], cfg.effect_starts)
-        th, info = refit(pe, th0, cfg.max_nfev)
+        th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev), cfg.blur_thresholds)
         n_sims[0] += m.n_sims
         g = pe.gap_per_frame(th, allf)
         after, tr_after = float(g[test].mean()), float(g[train].mean())
@@ -617,6 +623,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
                 p = m.params(th)
                 entry["physical"] = {mm: float(getattr(p, mm)) for mm in m.members(e)}
             res["params"][e] = entry
+        if "motion_blur" in effects:
+            res["params"]["motion_blur"]["segmentation_threshold"] = info["blur_threshold"]
         return res
 
     def supported(res: dict, prev: dict | None) -> bool:
@@ -685,6 +693,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             terms = {"base": {k: {"heldout": float(v[test].mean()), "all": float(v.mean())} for k, v in mt.items()}}
             if named:
                 mn = model(tuple(named))
+                if "motion_blur" in named:
+                    mn.blur_threshold = prev["params"]["motion_blur"]["segmentation_threshold"]
                 mt2 = metric_terms(mn, np.asarray(prev["theta"]), trial, clip, fset, alpha)
                 if mt2 is not None:
                     terms["after " + "+".join(named)] = {k: {"heldout": float(v[test].mean()), "all": float(v.mean())}

@@ -22,9 +22,10 @@ Dynamics (what the simulator is given)::
 Imaging and timing (the camera, not the motion; no re-simulation)::
 
     lens_k1         k1 (-)       radial distortion the calibration missed
-    motion_blur     b  (s^2)     exposure^2: the silhouette is the mean over an exposure sqrt(b)
-                                 centred on the frame time (a one-sided exposure is this plus a
-                                 time offset of half of it)
+    motion_blur     b  (s^2)     exposure^2: an exposure sqrt(b) centred on the frame time (a
+                                 one-sided exposure is this plus a time offset of half of it),
+                                 segmented: a pixel is foreground where its coverage over the
+                                 exposure exceeds ``blur_threshold`` (rigid_model.segmented_blur)
     rolling_shutter rs (s)       image row v is captured rs v / H after row 0
     time_offset     dt (s)       every frame is captured dt after the time the corner paths give
     time_rate       r  (-)       the frame clock runs fast: t -> t_first + (t - t_first)(1 + r)
@@ -60,7 +61,7 @@ from numba import njit
 
 from vidsim.cloth import ClothParams, simulate, stable_step
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
-from vidsim.gap.rigid_model import EffectSpec
+from vidsim.gap.rigid_model import EffectSpec, segmented_blur
 from vidsim.video.camera import PinholeCamera
 
 __all__ = ["ClothGapError", "ClothEffectSpec", "CLOTH_EFFECTS", "DRAG_NAMES", "DAMPING_NAMES", "ClothSetup",
@@ -316,6 +317,9 @@ class ClothGapModel:
         self.params0 = params0
         self.estimated = tuple(estimated)
         self.effects = tuple(effects)
+        #: segmentation threshold of the blur (:func:`vidsim.gap.rigid_model.segmented_blur`; None:
+        #: the plain mean coverage over the exposure)
+        self.blur_threshold: float | None = 0.35
         self.scale = float(scale)
         self.ramp = float(ramp)
         self.cam_full = setup.camera
@@ -540,9 +544,10 @@ class ClothGapModel:
         bias = float(np.asarray(theta, float)[self.n_est])
         out = np.zeros((len(idx), H, W))
         for i, samples in enumerate(verts):
-            for v in samples:
-                out[i] += soft_coverage(cam.project(v), self.tris, H, W, self.ramp, bias, self.boundary)
-            out[i] /= len(samples)
+            cov = [soft_coverage(cam.project(v), self.tris, H, W, self.ramp, bias, self.boundary) for v in samples]
+            out[i] = np.mean(cov, axis=0)
+            if len(cov) > 1 and self.blur_threshold is not None:
+                out[i] = segmented_blur(cov[len(cov) // 2], out[i], self.blur_threshold)
         return out, True
 
     def fd_steps(self, theta: np.ndarray, target_px: float, probe: float = 0.25) -> np.ndarray:

@@ -86,6 +86,9 @@ class DiagnoseConfig:
             the gap pass no single-effect test) and name a pair when it closes ``min_closure`` of
             the held-out excess and beats each of its members alone by ``pair_min_gain``.
         pair_min_gain: held-out closure each member of a jointly named pair must add.
+        blur_thresholds: segmentation thresholds (fractions of the exposure,
+            :func:`vidsim.gap.rigid_model.segmented_blur`) tried in a refit with motion blur; the
+            one with the lowest training cost is kept and reported (the screen uses 0.35).
     """
 
     candidates: list[str] = field(default_factory=lambda: list(RIGID_EFFECTS))
@@ -102,9 +105,12 @@ class DiagnoseConfig:
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
+    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.35, 0.5])
 
     def validate(self) -> None:
         """Raise :class:`GapError` naming the field when a setting is not usable."""
+        if not self.blur_thresholds or not all(0.0 < c < 1.0 for c in self.blur_thresholds):
+            raise GapError(f"gap.diagnose.blur_thresholds must be fractions in (0, 1), got {self.blur_thresholds}")
         if not 0.0 <= self.pair_min_gain <= 1.0:
             raise GapError(f"gap.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         for c in self.candidates:
@@ -510,6 +516,24 @@ def _lag1(x: np.ndarray) -> float:
     return float(x[1:] @ x[:-1] / d) if d > 0 and len(x) > 2 else 1.0
 
 
+def blur_threshold_refit(prob, theta0: np.ndarray, refit_fn, thresholds) -> tuple[np.ndarray, dict]:
+    """``refit_fn(prob, theta0)`` once per segmentation threshold when the model has motion blur
+    (else once); the lowest training cost wins, its threshold is left on the model and returned
+    in ``info["blur_threshold"]``. The threshold is set by the footage's segmentation and
+    contrast, which the diagnosis does not see, so it is chosen on the training frames."""
+    m = prob.model
+    if "motion_blur" not in m.slices:
+        return refit_fn(prob, theta0)
+    best = None
+    for c in thresholds:
+        m.blur_threshold = float(c)
+        th, info = refit_fn(prob, theta0)
+        if best is None or info["cost"] < best[1]["cost"]:
+            best = (th, {**info, "blur_threshold": float(c)})
+    m.blur_threshold = best[1]["blur_threshold"]
+    return best
+
+
 def joint_pair_search(pool: list[str], singles: dict[str, dict], judge, supported, cfg, note, floor: float,
                       library=None) -> tuple[list[str], dict | None, dict[str, dict]]:
     """Joint refits of every pair of ``pool`` (time jitter and stated aliases excluded: jitter is
@@ -656,7 +680,7 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         pe = problem(effects, train)
         th0 = theta_b if start is None else start
         th0 = np.r_[th0, np.zeros(pe.model.n_params - len(th0))]
-        th, info = refit(pe, th0, cfg.max_nfev)
+        th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev), cfg.blur_thresholds)
         n_renders += pe.n_evals
         g = pe.gap_per_frame(th, np.arange(T))
         if "time_jitter" in effects:
@@ -686,6 +710,8 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
                 res["params"][e] = {"value": v.tolist(), "ci95": [(v - 1.96 * sd[sl]).tolist(),
                                                                    (v + 1.96 * sd[sl]).tolist()],
                                     "units": RIGID_EFFECTS[e].units}
+        if "motion_blur" in effects:
+            res["params"]["motion_blur"]["segmentation_threshold"] = info["blur_threshold"]
         return res
 
     def supported(res: dict, added: str, prev: dict | None) -> bool:
