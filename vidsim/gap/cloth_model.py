@@ -22,10 +22,10 @@ Dynamics (what the simulator is given)::
 Imaging and timing (the camera, not the motion; no re-simulation)::
 
     lens_k1         k1 (-)       radial distortion the calibration missed
-    motion_blur     b  (s^2)     exposure^2: an exposure sqrt(b) centred on the frame time (a
-                                 one-sided exposure is this plus a time offset of half of it),
-                                 segmented: a pixel is foreground where its coverage over the
-                                 exposure exceeds ``blur_threshold`` (rigid_model.segmented_blur)
+    motion_blur     b  (s^2)     exposure^2: the silhouette is the mean over an exposure sqrt(b)
+                                 centred on the frame time (a one-sided exposure is this plus a
+                                 time offset of half of it); ``blur_threshold`` segments it
+                                 instead (rigid_model.segmented_blur; off by default here)
     rolling_shutter rs (s)       image row v is captured rs v / H after row 0
     time_offset     dt (s)       every frame is captured dt after the time the corner paths give
     time_rate       r  (-)       the frame clock runs fast: t -> t_first + (t - t_first)(1 + r)
@@ -317,9 +317,9 @@ class ClothGapModel:
         self.params0 = params0
         self.estimated = tuple(estimated)
         self.effects = tuple(effects)
-        #: segmentation threshold of the blur (:func:`vidsim.gap.rigid_model.segmented_blur`; None:
-        #: the plain mean coverage over the exposure)
-        self.blur_threshold: float | None = 0.35
+        #: segmentation threshold of the blur (:func:`vidsim.gap.rigid_model.segmented_blur`; None,
+        #: the default in this domain: the plain mean coverage over the exposure)
+        self.blur_threshold: float | None = None
         self.scale = float(scale)
         self.ramp = float(ramp)
         self.cam_full = setup.camera

@@ -109,7 +109,7 @@ class DiagnoseConfig:
 
     def validate(self) -> None:
         """Raise :class:`GapError` naming the field when a setting is not usable."""
-        if not self.blur_thresholds or not all(0.0 < c < 1.0 for c in self.blur_thresholds):
+        if not all(0.0 < c < 1.0 for c in self.blur_thresholds):
             raise GapError(f"gap.diagnose.blur_thresholds must be fractions in (0, 1), got {self.blur_thresholds}")
         if not 0.0 <= self.pair_min_gain <= 1.0:
             raise GapError(f"gap.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
@@ -518,12 +518,14 @@ def _lag1(x: np.ndarray) -> float:
 
 def blur_threshold_refit(prob, theta0: np.ndarray, refit_fn, thresholds) -> tuple[np.ndarray, dict]:
     """``refit_fn(prob, theta0)`` once per segmentation threshold when the model has motion blur
-    (else once); the lowest training cost wins, its threshold is left on the model and returned
-    in ``info["blur_threshold"]``. The threshold is set by the footage's segmentation and
-    contrast, which the diagnosis does not see, so it is chosen on the training frames."""
+    (else, or with no thresholds, once with the model's own); the lowest training cost wins, its
+    threshold is left on the model and returned in ``info["blur_threshold"]``. The threshold is
+    set by the footage's segmentation and contrast, which the diagnosis does not see, so it is
+    chosen on the training frames."""
     m = prob.model
-    if "motion_blur" not in m.slices:
-        return refit_fn(prob, theta0)
+    if "motion_blur" not in m.slices or not thresholds:
+        th, info = refit_fn(prob, theta0)
+        return th, {**info, "blur_threshold": getattr(m, "blur_threshold", None)}
     best = None
     for c in thresholds:
         m.blur_threshold = float(c)
