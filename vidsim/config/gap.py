@@ -37,7 +37,7 @@ class GapDiagnoseConfig:
         jitter_min_white: share of the fitted time errors' variance a cubic drift must leave.
         pairs: forward selection may name a second effect: while a gap beyond the floor remains
             after the first, screen again with it in the model and refit the best of the rest with it.
-        joint_pairs: when no single effect is named although a gap remains, refit the pairs of the
+        joint_pairs: (with pairs) when no single effect is named although a gap remains, refit the pairs of the
             top_k screened candidates jointly and name a pair that closes min_closure and beats each
             member alone by pair_min_gain (held-out closure).
         pair_min_gain: held-out closure each member of a jointly named pair must add.

@@ -79,7 +79,7 @@ class ClothDiagnoseConfig:
         top_k: screened candidates refitted; max_nfev: residual evaluations per refit.
         min_closure, min_excess: the naming rule (see :mod:`vidsim.gap.rigid_diagnose`).
         pairs: forward selection may name a second effect.
-        joint_pairs, pair_min_gain: when no single effect is named although a gap remains, refit
+        joint_pairs, pair_min_gain: (with ``pairs``) when no single effect is named although a gap remains, refit
             the pairs of the ``top_k`` screened candidates jointly and name a pair that closes
             ``min_closure`` and beats each member alone by ``pair_min_gain`` (the rigid rule,
             :func:`vidsim.gap.rigid_diagnose.joint_pair_search`).
@@ -579,8 +579,10 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     # 5. screen at the base refit, all frames
     allf = np.arange(T)
 
-    def run_screen(current: tuple[str, ...], theta_cur: np.ndarray, names: list[str]) -> dict[str, dict]:
+    def run_screen(current: tuple[str, ...], theta_cur: np.ndarray, names: list[str],
+                   blur_threshold: float | None = None) -> dict[str, dict]:
         m = model(tuple(current) + tuple(names))
+        m.blur_threshold = blur_threshold
         pall = problem(m, allf)
         theta_ext = np.r_[theta_cur, np.zeros(m.n_params - len(theta_cur))]
         r = pall.residual(theta_ext)
@@ -653,7 +655,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
                     and not any(c in CLOTH_EFFECTS[k].alias or k in CLOTH_EFFECTS[c].alias for k in named)]
             if not rest or prev["heldout_after_px"] - floor_mean <= cfg.min_excess * floor_mean:
                 break
-            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest)
+            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest,
+                             prev["params"].get("motion_blur", {}).get("segmentation_threshold"))
             pool = sorted(rest, key=lambda c: scr[c]["rank"])
             note("conditional screen")
             conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}
@@ -696,7 +699,9 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         if mt is not None:
             terms = {"base": {k: {"heldout": float(v[test].mean()), "all": float(v.mean())} for k, v in mt.items()}}
             if named:
-                mn = model(tuple(named))
+                # the effects in the order prev["theta"] was fitted (a joint pair's order can differ
+                # from the named order)
+                mn = model(tuple(prev["effects"]))
                 if "motion_blur" in named:
                     mn.blur_threshold = prev["params"]["motion_blur"].get("segmentation_threshold")
                 mt2 = metric_terms(mn, np.asarray(prev["theta"]), trial, clip, fset, alpha)

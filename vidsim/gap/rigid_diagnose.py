@@ -81,7 +81,7 @@ class DiagnoseConfig:
         jitter_min_white: time jitter is named only when at least this fraction of the variance
             of its fitted time errors is not explained by a cubic drift in time.
         pairs: forward selection may name a second effect (conditional screen, then joint refits).
-        joint_pairs: when no single candidate is named although a gap remains, refit every pair of
+        joint_pairs: (with ``pairs``) when no single candidate is named although a gap remains, refit every pair of
             the ``top_k`` screened candidates jointly (two effects that each close a quarter of
             the gap pass no single-effect test) and name a pair when it closes ``min_closure`` of
             the held-out excess and beats each of its members alone by ``pair_min_gain``.
@@ -551,11 +551,12 @@ def joint_pair_search(pool: list[str], singles: dict[str, dict], judge, supporte
     best, best_c, best_key = [], -np.inf, ""
     for i, a in enumerate(pool):
         for b in pool[i + 1:]:
-            if "time_jitter" in (a, b) or a in lib[b].alias or b in lib[a].alias:
+            if "time_jitter" in (a, b) or a in lib[b].alias or b in lib[a].alias or a not in singles \
+                    or b not in singles:
                 continue
             res = judge((a, b))
             c_pair = res["heldout_closure"]
-            c_a, c_b = (singles[e]["heldout_closure"] if e in singles else 0.0 for e in (a, b))
+            c_a, c_b = (singles[e]["heldout_closure"] for e in (a, b))
             res["single_closures"] = {a: c_a, b: c_b}
             res["supported"] = ok = bool(supported(res, b, None)
                                          and c_pair - max(c_a, c_b) >= cfg.pair_min_gain)
@@ -644,11 +645,15 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     floor_mean = float(floor.mean())
     floor_train_mean = float(floor_train.mean())
 
-    def run_screen(current: tuple[str, ...], theta_cur: np.ndarray, names: list[str]) -> dict[str, dict]:
+    def run_screen(current: tuple[str, ...], theta_cur: np.ndarray, names: list[str],
+                   blur_threshold: float | None = None) -> dict[str, dict]:
         """Score test of each of ``names`` at ``theta_cur`` (base + the ``current`` effects, whose
-        parameters are projected out with the base's), all frames, ranked best first."""
+        parameters are projected out with the base's), all frames, ranked best first
+        (``blur_threshold``: the segmentation threshold ``theta_cur`` was fitted with)."""
         nonlocal n_renders
         pall = problem(tuple(current) + tuple(names), allf)
+        if blur_threshold is not None:
+            pall.model.blur_threshold = blur_threshold
         theta_ext = np.r_[theta_cur, np.zeros(pall.model.n_params - len(theta_cur))]
         Jall = pall.jacobian(theta_ext) * pall.model.x_scale()
         r = pall.residual(theta_ext)
@@ -759,7 +764,8 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
                     and not any(c in RIGID_EFFECTS[k].alias or k in RIGID_EFFECTS[c].alias for k in named)]
             if not rest or not supported_gap(prev):
                 break
-            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest)
+            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest,
+                             prev["params"].get("motion_blur", {}).get("segmentation_threshold"))
             pool = sorted(rest, key=lambda c: scr[c]["rank"])
             note("conditional screen")
             conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}

@@ -357,8 +357,10 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
     train_u: list[np.ndarray] = []
     train_e: list[np.ndarray] = []  # (n_trials,) per point
     frame_sets: dict[str, FrameEval] = {}
+    requested: set[str] = set()  # points this run asked for (replayed or new): the budget's count
 
     def true_eval(u: np.ndarray) -> FrameEval | None:
+        requested.add(point_key(u))
         r = truth(u)
         if r is not None:
             if len(r.frames) != n_trials:
@@ -601,7 +603,9 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
         # refining helps only where the surrogate misses beyond the loss's own roughness
         if check["ok"] or check["consistent_with_roughness"]:
             break
-        n_true = len(truth.cache.store)
+        # this run's own points, not the log's size: a rerun in the same folder replays points a
+        # later step of the earlier run asked for, and must decide as the earlier run did
+        n_true = len(requested)
         if k_ref < s.refine_rounds and s.max_true_evals and n_true + s.n_check > s.max_true_evals:
             check["refinement_skipped"] = (f"budget: {n_true} true evaluations so far, a refinement needs "
                                            f"{s.n_check} more, posterior.cloth.max_true_evals = {s.max_true_evals}")

@@ -241,5 +241,12 @@ def test_refinement_is_skipped_beyond_the_true_evaluation_cap(tmp_path):
     assert capped.check["refinement"] == 0 and "max_true_evals" in capped.check["refinement_skipped"]
     assert capped.n_true_evals == free.n_true_evals - 20
     assert not capped.check["ok"]  # the failed first check is what is reported, not hidden
+    # a rerun in the folder of the uncapped run, whose log already holds the refinement's points,
+    # with a cap that allows exactly one refinement, decides as a fresh run does (the count is the
+    # run's own requested points, not the log's size)
+    again = cloth_posterior(obj, D, np.array([0.52, 0.43, 0.56]), obj.cache(),
+                            settings(max_true_evals=free.n_true_evals, **kw), tmp_path / "a")
+    assert again.check["refinement"] == 1 and "refinement_skipped" not in again.check
+    assert again.n_new_evals == 0 and again.check["loss_surrogate"] == free.check["loss_surrogate"]
     with pytest.raises(Exception, match="max_true_evals"):
         settings(max_true_evals=-1).validate(D)
