@@ -198,6 +198,10 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
         out.setdefault("closure", {})[lbl] = float(clos)
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
         if lbl in truths:
+            # effects named jointly were refitted together: their strengths come from that refit
+            joint = diag.refits.get("+".join(named)) if named else None
+            if joint is not None and joint.get("named_jointly") and lbl in joint.get("params", {}):
+                r = joint
             p = r["params"][lbl]
             est = p["std_s"] if lbl == "time_jitter" else p["value"]
             tv = truths[lbl]

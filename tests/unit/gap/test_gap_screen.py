@@ -130,3 +130,38 @@ def test_joint_pair_names_two_effects_only_when_each_adds_to_the_other():
     assert named == [] and judged == []
     with pytest.raises(GapError, match="pair_min_gain"):
         DiagnoseConfig(pair_min_gain=1.5).validate()
+
+
+def test_score_reads_jointly_named_strengths_from_the_pair_refit():
+    """Effects named as a pair were estimated together: the suite scores both strengths from the
+    pair's refit, not the first member's own single refit (whose value absorbed the second)."""
+    from vidsim.gap.rigid_diagnose import RigidDiagnosis
+    from vidsim.gap.suite import score_case
+
+    def refit(params, closure, **kw):
+        return {"params": {k: {"value": v} for k, v in params.items()}, "heldout_closure": closure,
+                "heldout_after_px": 50.0, **kw}
+
+    z = np.zeros(3)
+    refits = {"com_offset": refit({"com_offset": [0.0, 0.0, 0.03]}, 0.28),
+              "angular_drag": refit({"angular_drag": [9.0]}, 0.23),
+              "com_offset+angular_drag": refit({"com_offset": [0.0, 0.0, 0.011], "angular_drag": [2.1]}, 0.61,
+                                               closure_of_remaining=0.46, named_jointly=True)}
+    body, _ = t_object()
+    truth = {"effects": {"com_offset": [0.0, 0.0, 0.01], "angular_drag": 2.0}}
+    case = {"label": ["angular_drag", "com_offset"]}
+
+    def diag(refits):
+        return RigidDiagnosis(["com_offset", "angular_drag"], "explained", z, z, np.array([0]), np.ones(1),
+                              np.ones(1), {}, refits, {}, z, z, z, 0.0, 0, {"gap_present": True})
+
+    sc = score_case(case, diag(refits), truth, body)
+    assert sc["correct"]
+    assert sc["recovery"]["com_offset"]["estimate"] == [0.0, 0.0, 0.011]
+    assert sc["recovery"]["com_offset"]["rel_error"] == pytest.approx(0.1)
+    assert sc["closure"]["com_offset"] == 0.28  # the closure stays the first member's own
+    # named one after the other (not jointly): the first's strength is its own refit's
+    seq = dict(refits)
+    seq["com_offset+angular_drag"] = {k: v for k, v in refits["com_offset+angular_drag"].items() if k != "named_jointly"}
+    sc = score_case(case, diag(seq), truth, body)
+    assert sc["recovery"]["com_offset"]["estimate"] == [0.0, 0.0, 0.03]
