@@ -8,9 +8,14 @@ Cases are the entries of ``gap.cloth.cases`` (``conf/gap/default.yaml``; add one
 :class:`vidsim.gap.cloth_suite.ClothSceneConfig` (added with a ``+``:
 ``+gap.cloth.diagnose.top_k=1``; an unknown name stops the stage before any case runs). Writes ``cases/<name>.json`` (case, score,
 diagnosis), ``suite.json`` (scores, the headline rates of :func:`vidsim.cli.gap_suite.headline`,
-seconds), ``confusion.csv`` and ``confusion.png`` (true label vs first named effect). Only the
-scoring reads the truth (:func:`vidsim.gap.cloth_suite.run_case`). No checkpoint: a case takes
-about a CPU-minute.
+seconds), ``confusion.csv`` and ``confusion.png`` (true label vs first named effect),
+``shrinkage.csv`` (per case: held-out gap before/after, closure, strength, and the effect's
+footprint on the footage beside the sensor noise's; :func:`vidsim.cli.gap_suite.write_shrinkage`).
+Only the scoring reads the truth (:func:`vidsim.gap.cloth_suite.run_case`).
+
+Checkpoint: cases are written as they finish to ``.<out>.part/cases/``; a rerun after a kill keeps
+every finished case whose stored key (its case entry, ``gap.cloth.diagnose`` and
+``gap.cloth.scene``) is unchanged, as the rigid suite does.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.gap_suite import headline, select_cases, write_confusion
+from vidsim.cli.gap_suite import finished_case, headline, select_cases, write_confusion, write_shrinkage
 from vidsim.errors import ConfigError
 from vidsim.io.atomic import write_json
 from vidsim.log.progress import Progress
@@ -55,22 +60,35 @@ def run(cfg: DictConfig) -> None:
     scene = settings(ClothSceneConfig, OmegaConf.to_container(cc.scene, resolve=True), "gap.cloth.scene")
     out = Path(cfg.paths.out)
     tmp = out.with_name(f".{out.name}.part")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    (tmp / "cases").mkdir(parents=True)
+    (tmp / "cases").mkdir(parents=True, exist_ok=True)
+    for f in (tmp / "cases").iterdir():  # cases no longer asked for do not reach the output
+        if f.stem not in names:
+            f.unlink()
+    common = {"diagnose": OmegaConf.to_container(cc.diagnose, resolve=True),
+              "scene": OmegaConf.to_container(cc.scene, resolve=True)}
     prog = Progress(len(names), "gap_cloth_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
+    resumed: list[str] = []
     t0 = time.perf_counter()
     for n in names:
+        key = {"case": cases[n], **common}
+        done = finished_case(tmp / "cases", n, key, companions=())
+        if done is not None:
+            scores[n] = done
+            resumed.append(n)
+            prog.update(note=f"{n}: resumed from the checkpoint")
+            continue
         try:
             d, s, _ = run_case(cases[n], scene, dcfg, cfg.cloth)
         except ClothGapError as e:
             raise ConfigError(f"gap.cloth.cases.{n}: {e}") from e
         scores[n] = s
-        write_json(tmp / "cases" / f"{n}.json", {"case": cases[n], "score": s, "diagnosis": d.to_dict()})
+        write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": d.to_dict()})
         prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
     write_confusion(*confusion(scores), tmp)
+    write_shrinkage(scores, tmp)
     summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
+            "resumed_cases": resumed,
             "diagnose_config": OmegaConf.to_container(cc.diagnose, resolve=True),
             "scene_config": OmegaConf.to_container(cc.scene, resolve=True)}
     write_json(tmp / "suite.json", summ)

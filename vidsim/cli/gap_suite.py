@@ -54,10 +54,11 @@ def headline(scores: dict[str, dict]) -> dict:
     }
 
 
-def finished_case(folder: Path, name: str, key: dict) -> dict | None:
-    """The score of case ``name`` from an interrupted run, when it finished with the same ``key``."""
-    js, png = folder / f"{name}.json", folder / f"{name}.png"
-    if not (js.exists() and png.exists()):
+def finished_case(folder: Path, name: str, key: dict, companions: tuple[str, ...] = (".png",)) -> dict | None:
+    """The score of case ``name`` from an interrupted run, when it finished with the same ``key``
+    (and its ``companions``, files written before the json, exist)."""
+    js = folder / f"{name}.json"
+    if not js.exists() or not all((folder / f"{name}{ext}").exists() for ext in companions):
         return None
     try:
         stored = json.loads(js.read_text())
@@ -168,8 +169,26 @@ def run(cfg: DictConfig) -> None:
             log_diagnosis(lg, d, masks, prefix=f"{n}/")
             prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
     write_confusion(*confusion(scores), tmp)
+    write_shrinkage(scores, tmp)
+    summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
+            "resumed_cases": resumed,
+            "diagnose_config": OmegaConf.to_container(cfg.gap.diagnose, resolve=True)}
+    write_json(tmp / "suite.json", summ)
+    print(f"gap_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+
+
+def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:
+    """``shrinkage.csv``: per case and true effect, the held-out gap before/after, closure and strength.
+
+    ``effect_footprint_px`` (cloth twin cases; empty elsewhere): how much the withheld effect changes
+    the footage's silhouettes, pixels per frame, beside ``noise_footprint_px`` (two null films that
+    differ only by the sensor noise): an effect whose footprint is not above the noise's cannot be
+    named from the footage by any method (scoring only: it reads the truth)."""
     lines = ["case,label,named,correct,heldout_before_px,noise_floor_px,effect,heldout_after_px,closure,"
-             "strength_estimate,strength_truth,strength_rel_error"]
+             "strength_estimate,strength_truth,strength_rel_error,effect_footprint_px,noise_footprint_px"]
     for n, s in scores.items():
         effs = list(s.get("closure", {})) or [""]
         for e in effs:
@@ -182,16 +201,10 @@ def run(cfg: DictConfig) -> None:
                 f"{s.get('closure', {}).get(e, float('nan')):.3f}",
                 (" ".join(f"{v:.4g}" for v in est) if isinstance(est, list) else (f"{est:.4g}" if est != "" else "")),
                 (" ".join(f"{v:.4g}" for v in tru) if isinstance(tru, list) else (f"{tru:.4g}" if tru != "" else "")),
-                (f"{r['rel_error']:.3f}" if r else ""))))
-    write_text(tmp / "shrinkage.csv", "\n".join(lines) + "\n")
-    summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,
-            "resumed_cases": resumed,
-            "diagnose_config": OmegaConf.to_container(cfg.gap.diagnose, resolve=True)}
-    write_json(tmp / "suite.json", summ)
-    print(f"gap_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+                (f"{r['rel_error']:.3f}" if r else ""),
+                (f"{s['effect_footprint_px']:.2f}" if s.get("effect_footprint_px") is not None else ""),
+                (f"{s['noise_footprint_px']:.2f}" if s.get("noise_footprint_px") is not None else ""))))
+    write_text(folder / "shrinkage.csv", "\n".join(lines) + "\n")
 
 
 main = stage_app("gap_suite", run)

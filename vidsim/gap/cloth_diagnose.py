@@ -107,6 +107,11 @@ class ClothDiagnoseConfig:
             a refit from zero may not find what a coarse start does (measured: wind case on a
             stiff twin started at the twin's stiffness, closure 0.00 from zero, 0.69 with
             ``[1, 3]``; docs/gap.md).
+        global_evals, global_width: before the base refit and before each candidate's refit, a
+            derivative-free search (:func:`global_search`, simulated annealing) of ``global_evals``
+            evaluations over every parameter within +-``global_width`` typical scales of the
+            start; the base gets the same search as the candidates, so a candidate is not credited
+            with what more search alone finds (0: off).
     """
 
     candidates: list[str] = field(default_factory=lambda: list(CLOTH_EFFECTS))
@@ -129,6 +134,8 @@ class ClothDiagnoseConfig:
     metric_terms: bool = True
     seed: int = 0
     effect_starts: list[float] = field(default_factory=lambda: [1.0, 3.0])
+    global_evals: int = 0
+    global_width: float = 3.0
 
     def validate(self) -> None:
         """Raise :class:`ClothGapError` naming the field when a setting is not usable."""
@@ -147,6 +154,9 @@ class ClothDiagnoseConfig:
             raise ClothGapError(f"gap.cloth.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         if self.top_k < 1 or self.max_nfev < 1 or self.base_nfev < 1 or self.roi_px < 1:
             raise ClothGapError("gap.cloth.diagnose.top_k, max_nfev and roi_px must be >= 1")
+        if self.global_evals < 0 or not self.global_width > 0:
+            raise ClothGapError(f"gap.cloth.diagnose.global_evals must be >= 0 and global_width > 0, got "
+                                f"{self.global_evals}, {self.global_width}")
         if self.floor_resolution != 0 and self.floor_resolution < 3:
             raise ClothGapError(f"gap.cloth.diagnose.floor_resolution must be 0 (the model's) or >= 3, got "
                                 f"{self.floor_resolution}")
@@ -310,6 +320,54 @@ def effect_start(prob: Problem, theta0: np.ndarray, effect: str, mults: list[flo
         r = prob.residual(th)
         cost.append(float(r @ r))
     return starts[int(np.argmin(cost))], len(starts)
+
+
+def global_search(prob: Problem, theta0: np.ndarray, n_evals: int, width: float = 3.0, seed: int = 0
+                  ) -> tuple[np.ndarray, int]:
+    """Derivative-free search of every parameter within ``theta0`` +- ``width`` x its typical scale
+    (and its bounds), on the sum of squared residuals of ``prob.frames``, ``n_evals`` evaluations:
+    half on a Latin-hypercube design of the box (the start kept), the rest the project's simulated
+    annealing (:func:`vidsim.optim.anneal.anneal`) from the design's best point. The cloth model's
+    response is chaotic and the trust region stops where it starts (docs/gap.md), so a refit whose
+    base must move far from the fit to make room for an effect needs a search that does not
+    difference. Returns (the best point seen, ``theta0`` itself when nothing beat it; evaluations)."""
+    from vidsim.optim.anneal import AnnealConfig, anneal
+
+    if n_evals < 1:
+        return np.asarray(theta0, float), 0
+    m = prob.model
+    theta0 = np.asarray(theta0, float)
+    xs = m.x_scale()
+    lo = np.maximum(theta0 - width * xs, m.lower())
+    hi = np.minimum(theta0 + width * xs, m.upper())
+    span = np.where(hi > lo, hi - lo, 1.0)
+
+    def theta(u: np.ndarray) -> np.ndarray:
+        return lo + np.clip(u, 0, 1) * span
+
+    def cost(u: np.ndarray) -> float:
+        r = prob.residual(theta(u))
+        c = float(r @ r)
+        return c if np.isfinite(c) else 1e30
+
+    from scipy.stats import qmc
+
+    u_start = (theta0 - lo) / span
+    c0 = cost(u_start)
+    n_design = int(n_evals) // 2
+    best_u, best_c = u_start, c0
+    if n_design > 0:
+        for u in qmc.LatinHypercube(d=theta0.size, seed=int(seed)).random(n_design):
+            c = cost(u)
+            if c < best_c:
+                best_u, best_c = u, c
+    n_ann = int(n_evals) - n_design
+    res = anneal(cost, best_u, AnnealConfig(budget=n_ann, evals_per_T=6, step=0.12, min_step=0.02,
+                                            seed=int(seed))) if n_ann > 0 else None
+    if res is not None and res.best_f < best_c:
+        best_u, best_c = res.best_u, res.best_f
+    n = 1 + n_design + (res.n_evals if res is not None else 0)
+    return (theta(best_u), n) if best_c < c0 else (theta0, n)
 
 
 def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 8, free: np.ndarray | None = None
@@ -540,7 +598,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
 
     # 2. base refit on the training frames
     pb = problem(base, train)
-    theta_b, info_b = refit(pb, th_fit, cfg.base_nfev)
+    th_start, _ = global_search(pb, th_fit, cfg.global_evals, cfg.global_width, cfg.seed)
+    theta_b, info_b = refit(pb, th_start, cfg.base_nfev)
     gap_all = pb.gap_per_frame(theta_b, np.arange(T))
     before = float(gap_all[test].mean())
     tr_before = float(gap_all[train].mean())
@@ -608,6 +667,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         th0 = theta_b if start is None else start
         th0 = np.r_[th0, np.zeros(m.n_params - len(th0))]
         th0, n_starts = effect_start(pe, th0, effects[-1], cfg.effect_starts)
+        th0, _ = global_search(pe, th0, cfg.global_evals, cfg.global_width, cfg.seed)
         th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev), cfg.blur_thresholds)
         n_sims[0] += m.n_sims
         g = pe.gap_per_frame(th, allf)

@@ -375,9 +375,32 @@ def run_case(case: dict, scene: ClothSceneConfig | None = None, dcfg: ClothDiagn
                           frame_stride=int(scene.frame_stride), settle_s=float(scene.settle_s_model), cfg=dcfg,
                           feature_settings=fs, alpha=float(c.fit.alpha), progress=progress)
     sc = score_case(case, diag, cc.truth, scene)
+    sc.update(footprints(case, cc, scene, c))
     sc.update({"reality_seconds": t_real, "fit_seconds": t_fit, "diagnose_seconds": diag.seconds,
                "fit": info, "n_simulations": diag.n_sims})
     return diag, sc, cc
+
+
+def footprints(case: dict, cc: ClothCase, scene: ClothSceneConfig, cloth_cfg) -> dict:
+    """How visible a twin case's effect is (scoring only: it films the truth without the effect).
+
+    ``effect_footprint_px``: silhouette pixels per frame that differ between the case's footage and
+    the same twin filmed without its effects with the same sensor-noise draws (None for a null
+    case); ``noise_footprint_px``: the same between two films without effects that differ only by
+    the sensor noise (seed + 1). An effect whose footprint is not clearly above the noise's cannot
+    be named from the footage. Empty for the MuJoCo reality (its films are not repeatable without
+    the effect at the same state)."""
+    if _check_case(case)[0] != "twin":
+        return {}
+    null = {**case, "effects": {}}
+    c0 = make_case(null, scene, cloth_cfg)
+    c1 = make_case({**null, "seed": int(case.get("seed", 0)) + 1}, scene, cloth_cfg)
+
+    def diff(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.mean((a != b).reshape(a.shape[0], -1).sum(1)))
+
+    eff = None if not case.get("effects") else diff(cc.trial.sil, c0.trial.sil)
+    return {"effect_footprint_px": eff, "noise_footprint_px": diff(c0.trial.sil, c1.trial.sil)}
 
 
 def confusion(scores: dict[str, dict]) -> tuple[list[str], list[str], np.ndarray]:

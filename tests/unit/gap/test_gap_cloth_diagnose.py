@@ -51,6 +51,9 @@ def test_null_case_names_nothing(null_case):
     # every candidate refitted was judged on held-out frames and found unsupported
     assert diag.refits and not any(r["supported"] for r in diag.refits.values())
     assert set(diag.test).isdisjoint(diag.train) and len(diag.test) >= 4
+    # scoring's footprints: no effect to film without; two noise draws differ on the outline only
+    assert score["effect_footprint_px"] is None
+    assert 0.0 < score["noise_footprint_px"] < 0.05 * cc.trial.sil[0].size
 
 
 @pytest.mark.slow
@@ -64,6 +67,8 @@ def test_withheld_grip_slip_is_named_first_and_closes_half_the_excess():
     after = score["heldout_after_px"]["grip_slip"]
     assert (before - after) / (before - floor) >= 0.5
     assert score["closure"]["grip_slip"] >= 0.5
+    # the slip's footprint on the footage is well above the sensor noise's
+    assert score["effect_footprint_px"] > 2.0 * score["noise_footprint_px"]
 
 
 def test_null_case_report_is_consistent(null_case):
@@ -109,3 +114,38 @@ def test_effect_start_finds_a_coarse_start_the_refit_from_zero_would_miss():
     np.testing.assert_array_equal(start, truth)
     same, n0 = effect_start(prob, th0, "wind", [])
     assert n0 == 1 and same is th0
+
+
+def test_global_search_leaves_a_local_basin_and_never_returns_worse():
+    """The derivative-free search before a refit: on a residual with a local basin at the start and
+    a deeper one 2 typical scales away (where a trust region started at the local minimum cannot
+    go), it must return a point of lower cost inside its box and the bounds; at the global minimum
+    it returns the start itself; with no evaluations it does nothing."""
+    from types import SimpleNamespace
+
+    from vidsim.gap.cloth_diagnose import global_search
+
+    xs = np.array([0.5, 0.2, 1.0])
+    lower = np.array([-np.inf, 0.0, -np.inf])
+    model = SimpleNamespace(x_scale=lambda: xs, lower=lambda: lower, upper=lambda: np.full(3, np.inf))
+    deep = np.array([1.0, 0.4, 0.0])   # 2 typical scales from the start along the first two axes
+
+    def residual(th):
+        d0, d1 = (th - np.zeros(3)) / xs, (th - deep) / xs
+        # two wells: a shallow one at the start (depth 1) and a deep one at `deep` (depth 4)
+        return np.array([np.sqrt(5.0 - 1.0 * np.exp(-4 * d0 @ d0) - 4.0 * np.exp(-d1 @ d1))])
+
+    prob = SimpleNamespace(model=model, residual=residual)
+    start = np.zeros(3)
+    th, n = global_search(prob, start, 80, width=3.0, seed=0)
+    assert n == 81
+    c0, c = float(residual(start) @ residual(start)), float(residual(th) @ residual(th))
+    assert c < c0 - 1.0, (c0, c, th)
+    assert np.all(np.abs(th - start) <= 3.0 * xs + 1e-12) and th[1] >= 0.0
+    assert np.all(np.abs(th[:2] - deep[:2]) <= 0.6 * xs[:2]), th
+    best, _ = global_search(prob, deep, 40, width=3.0)   # nothing beats the global minimum
+    assert best is deep or np.array_equal(best, deep)
+    same, n0 = global_search(prob, start, 0)
+    assert n0 == 0 and np.array_equal(same, start)
+    with pytest.raises(cloth_diagnose.ClothGapError, match="global_evals"):
+        ClothDiagnoseConfig(global_evals=-1).validate()

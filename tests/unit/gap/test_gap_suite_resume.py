@@ -84,3 +84,44 @@ def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls
     assert summ["resumed_cases"] == [] and sorted(summ["cases"]) == ["lens_k1", "null_a"]
     assert sorted(p.name for p in (out / "cases").iterdir()) == ["lens_k1.json", "lens_k1.png",
                                                                  "null_a.json", "null_a.png"]
+
+
+def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
+    """gap_cloth_suite keeps finished cases (no figure per case there) and writes shrinkage.csv."""
+    import vidsim.cli.gap_cloth_suite as cstage
+    import vidsim.gap.cloth_suite as csuite
+    from hydra import compose, initialize_config_dir
+
+    made: list[int] = []
+    crash = {"seed": 305}
+
+    def fake_run_case(case, scene, dcfg, cloth_cfg=None, progress=None):
+        if case["seed"] == crash["seed"]:
+            raise RuntimeError("killed mid-suite")
+        made.append(case["seed"])
+        s = _score(case["label"])
+        s.update({"effect_footprint_px": None, "noise_footprint_px": 12.5})
+        return _Diag(str(case["seed"])), s, None
+
+    monkeypatch.setattr(csuite, "run_case", fake_run_case)
+    out = tmp_path / "cloth"
+
+    def cfg(*extra):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            return compose("config", overrides=[f"paths.results={tmp_path}", f"paths.out={out}", "log.rerun=false",
+                                                "log.progress=false", "gap.cloth.only=[null_a,wind,lens_k1]", *extra])
+
+    with pytest.raises(RuntimeError):
+        cstage.run(cfg())
+    assert made == [320, 302] and not out.exists()
+    crash["seed"] = None
+    cstage.run(cfg())
+    assert made == [320, 302, 305]
+    summ = json.loads((out / "suite.json").read_text())
+    assert summ["resumed_cases"] == ["null_a", "wind"]
+    rows = (out / "shrinkage.csv").read_text().splitlines()
+    assert rows[0].endswith("effect_footprint_px,noise_footprint_px") and len(rows) == 4
+    assert rows[1].startswith("null_a,none,none,True") and rows[1].endswith(",12.50")
+    # a changed scene setting reruns every case
+    cstage.run(cfg("+gap.cloth.scene.budget=31"))
+    assert made == [320, 302, 305, 320, 302, 305]
