@@ -14,8 +14,8 @@ footprint on the footage beside the sensor noise's; :func:`vidsim.cli.gap_suite.
 Only the scoring reads the truth (:func:`vidsim.gap.cloth_suite.run_case`).
 
 Checkpoint: cases are written as they finish to ``.<out>.part/cases/``; a rerun after a kill keeps
-every finished case whose stored key (its case entry, ``gap.cloth.diagnose`` and
-``gap.cloth.scene``) is unchanged, as the rigid suite does.
+every finished case whose stored key (its case entry, ``gap.cloth.diagnose``, ``gap.cloth.scene``
+and the ``cloth`` node it films and fits with) is unchanged, as the rigid suite does.
 """
 
 from __future__ import annotations
@@ -64,8 +64,11 @@ def run(cfg: DictConfig) -> None:
     for f in (tmp / "cases").iterdir():  # cases no longer asked for do not reach the output
         if f.stem not in names:
             f.unlink()
+    # everything a case's result depends on: its entry, the diagnosis and scene settings and the
+    # cloth study's devices, features and fit space (run_case reads them from cfg.cloth)
     common = {"diagnose": OmegaConf.to_container(cc.diagnose, resolve=True),
-              "scene": OmegaConf.to_container(cc.scene, resolve=True)}
+              "scene": OmegaConf.to_container(cc.scene, resolve=True),
+              "cloth": OmegaConf.to_container(cfg.cloth, resolve=True)}
     prog = Progress(len(names), "gap_cloth_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
     resumed: list[str] = []

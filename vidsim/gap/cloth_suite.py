@@ -341,6 +341,10 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
             continue
         out.setdefault("closure", {})[lbl] = float(r.get("closure_of_remaining", r["heldout_closure"]))
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
+        # effects named jointly were refitted together: their strengths come from that refit
+        joint = diag.refits.get("+".join(named)) if named else None
+        if joint is not None and joint.get("named_jointly") and lbl in joint.get("params", {}):
+            r = joint
         if lbl in truths and lbl in r["params"]:
             est = list(map(float, r["params"][lbl]["value"]))
             tv = truths[lbl]
@@ -387,13 +391,14 @@ def footprints(case: dict, cc: ClothCase, scene: ClothSceneConfig, cloth_cfg) ->
     ``effect_footprint_px``: silhouette pixels per frame that differ between the case's footage and
     the same twin filmed without its effects with the same sensor-noise draws (None for a null
     case); ``noise_footprint_px``: the same between two films without effects that differ only by
-    the sensor noise (seed + 1). An effect whose footprint is not clearly above the noise's cannot
+    the sensor noise (seed + 1; pixels flipped by the noise in either film, so about twice one
+    film's flips: the comparison of a footage with a replica). An effect whose footprint is not clearly above the noise's cannot
     be named from the footage. Empty for the MuJoCo reality (its films are not repeatable without
     the effect at the same state)."""
     if _check_case(case)[0] != "twin":
         return {}
     null = {**case, "effects": {}}
-    c0 = make_case(null, scene, cloth_cfg)
+    c0 = make_case(null, scene, cloth_cfg) if case.get("effects") else cc
     c1 = make_case({**null, "seed": int(case.get("seed", 0)) + 1}, scene, cloth_cfg)
 
     def diff(a: np.ndarray, b: np.ndarray) -> float:

@@ -6,7 +6,7 @@
 # gap_cloth_suite: ...}`).
 # Layout: {RESULTS}/gap/suite/{suite.json,confusion.*,shrinkage.csv,suite.rrd,cases/},
 # {RESULTS}/gap/rigid_{case}/{diagnosis.json,diagnosis.png,diagnosis.rrd}, {RESULTS}/gap/ball/,
-# {RESULTS}/gap/cloth_suite/{suite.json,confusion.*,cases/}.
+# {RESULTS}/gap/cloth_suite/{suite.json,confusion.*,shrinkage.csv,cases/}.
 GAP = config.get("gap", {}) or {}
 GAP_SUITE_ONLY = ",".join(str(c) for c in (GAP.get("suite_cases", []) or []))
 GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
@@ -60,6 +60,9 @@ rule gap_cloth_suite:
             caption="../report/gap_cloth_confusion.rst",
             category="Sim-to-real gap",
         ),
+        shrinkage=report(
+            f"{RESULTS}/gap/cloth_suite/shrinkage.csv", caption="../report/gap_shrinkage.rst", category="Sim-to-real gap"
+        ),
     params:
         out=get_out_dir,
         only=f"gap.cloth.only=[{GAP_CLOTH_ONLY}]",
@@ -69,8 +72,8 @@ rule gap_cloth_suite:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1200,  # measured peak RSS 557 MB (the 7 public cases, 2026-12-01; 502-597 MB in smaller runs)
-        runtime=30,  # the 7 public cases: 391 CPU-s, 644 s wall at load ~8 (2026-12-01)
+        mem_mb=1200,  # measured peak RSS 587 MB (the 11 public cases, 2026-12-02; 502-597 MB in smaller runs)
+        runtime=30,  # the 11 public cases: 592 CPU-s, 10 min wall (2026-12-02)
     shell:
         "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 

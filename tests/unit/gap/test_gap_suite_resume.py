@@ -122,6 +122,14 @@ def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
     rows = (out / "shrinkage.csv").read_text().splitlines()
     assert rows[0].endswith("effect_footprint_px,noise_footprint_px") and len(rows) == 4
     assert rows[1].startswith("null_a,none,none,True") and rows[1].endswith(",12.50")
-    # a changed scene setting reruns every case
-    cstage.run(cfg("+gap.cloth.scene.budget=31"))
-    assert made == [320, 302, 305, 320, 302, 305]
+    # a crash after a changed setting: the stored cases do not match and are recomputed
+    stored = json.loads((out / "cases" / "null_a.json").read_text())
+    assert stored["key"]["case"]["seed"] == 320 and "cloth" in stored["key"]
+    crash["seed"] = 305
+    with pytest.raises(RuntimeError):
+        cstage.run(cfg("+gap.cloth.scene.budget=31"))
+    assert made == [320, 302, 305, 320, 302]
+    crash["seed"] = None
+    cstage.run(cfg("cloth.fit.alpha=0.2", "+gap.cloth.scene.budget=31"))  # the cloth node is in the key too
+    assert made == [320, 302, 305, 320, 302, 320, 302, 305]
+    assert json.loads((out / "suite.json").read_text())["resumed_cases"] == []
