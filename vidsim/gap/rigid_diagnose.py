@@ -105,7 +105,7 @@ class DiagnoseConfig:
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
-    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.35, 0.5])
+    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5])
 
     def validate(self) -> None:
         """Raise :class:`GapError` naming the field when a setting is not usable."""
