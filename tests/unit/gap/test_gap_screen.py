@@ -165,3 +165,28 @@ def test_score_reads_jointly_named_strengths_from_the_pair_refit():
     seq["com_offset+angular_drag"] = {k: v for k, v in refits["com_offset+angular_drag"].items() if k != "named_jointly"}
     sc = score_case(case, diag(seq), truth, body)
     assert sc["recovery"]["com_offset"]["estimate"] == [0.0, 0.0, 0.03]
+
+
+def test_cloth_score_reads_jointly_named_strengths_from_the_pair_refit():
+    """The cloth suite's scoring follows the same rule as the rigid one."""
+    from vidsim.gap.cloth_diagnose import ClothDiagnosis
+    from vidsim.gap.cloth_suite import ClothSceneConfig, score_case
+
+    def refit(params, closure, **kw):
+        return {"params": {k: {"value": v} for k, v in params.items()}, "heldout_closure": closure,
+                "heldout_after_px": 50.0, **kw}
+
+    z = np.zeros(3)
+    refits = {"grip_slip": refit({"grip_slip": [0.03, 0.03]}, 0.3),
+              "lens_k1": refit({"lens_k1": [0.9]}, 0.2),
+              "grip_slip+lens_k1": refit({"grip_slip": [0.021, 0.019], "lens_k1": [0.28]}, 0.7,
+                                         closure_of_remaining=0.57, named_jointly=True)}
+    truth = {"kind": "twin", "effects": {"grip_slip": {"drop": 0.02}, "lens_k1": 0.3}}
+    case = {"label": ["grip_slip", "lens_k1"]}
+    diag = ClothDiagnosis(["grip_slip", "lens_k1"], "explained", z, z, np.array([0]), np.ones(1), np.ones(1), {},
+                          refits, {}, z, z, 0.0, 0, {"gap_present": True})
+    sc = score_case(case, diag, truth, ClothSceneConfig())
+    assert sc["correct"]
+    assert sc["recovery"]["grip_slip"]["estimate"] == [0.021, 0.019]
+    assert sc["recovery"]["lens_k1"]["estimate"] == [0.28]
+    assert sc["closure"]["grip_slip"] == 0.3 and sc["closure"]["lens_k1"] == 0.57
