@@ -72,8 +72,8 @@ rule gap_cloth_suite:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1200,  # measured peak RSS 587 MB (the 11 public cases, 2026-12-02; 502-597 MB in smaller runs)
-        runtime=30,  # the 11 public cases: 592 CPU-s, 10 min wall (2026-12-02)
+        mem_mb=1200,  # measured peak RSS 646 MB (the 11 public cases, 2026-12-02; 502-597 MB in smaller runs)
+        runtime=30,  # the 11 public cases: 733 CPU-s with the footprints (2026-12-02)
     shell:
         "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 
