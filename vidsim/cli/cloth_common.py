@@ -118,7 +118,8 @@ def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
     space = space_from_config({n: full[n] for n in est})
     m = cfg.cloth.model
     return ClothObjective(trials, space, fixed=fixed_params(cfg),
-                          model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s), integrator=str(m.integrator),
+                          model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s),
+                                              settle_bath=float(m.settle_bath), integrator=str(m.integrator),
                                               skirt_rings=int(cfg.cloth.skirt.model_rings),
                                               skirt_around=int(cfg.cloth.skirt.model_around),
                                               skirt_rest_bend=str(cfg.cloth.skirt.model_rest_bend)),

@@ -42,12 +42,15 @@ STATUS_TEXT = {
 # change to a kernel in forces.py or collision.py is not seen by the cached _accel and the
 # loops that inline it. Bump KERNEL_VERSION with every such change (or delete __pycache__).
 # test_fused_kernels_equal_the_separate_forces catches a stale cache.
-KERNEL_VERSION = "2026-12-01 quadratic bending, projected bend damping, one-division stretch/drag"
+KERNEL_VERSION = "2026-12-02 settle bath (viscous damping before frame 0)"
 
 # parameter vector layout
 P_BEND, P_STRETCH, P_SHEAR, P_KDB, P_KDS, P_KDSH, P_KT, P_KN, P_KF = range(9)
 P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL, P_MARGIN, P_BENDQ = range(9, 17)
-N_P = 17
+# settle bath: a uniform viscous damping rate [1/s] on every free vertex while t < P_BATH_END
+# (a rest-state preparation before frame 0, not a physical force of the filmed motion)
+P_BATH, P_BATH_END = range(17, 19)
+N_P = 19
 
 
 @njit(cache=True)
@@ -171,6 +174,12 @@ def _accel(
         acc[i, 0] = f[i, 0] * im
         acc[i, 1] = f[i, 1] * im
         acc[i, 2] = f[i, 2] * im
+    if P[P_BATH] > 0.0 and t < P[P_BATH_END]:
+        cb = P[P_BATH]
+        for i in range(N):
+            acc[i, 0] -= cb * v[i, 0]
+            acc[i, 1] -= cb * v[i, 1]
+            acc[i, 2] -= cb * v[i, 2]
     for d in range(D):
         i = didx[d]
         for c in range(3):

@@ -36,6 +36,8 @@ from vidsim.cloth.integrate import (
     _DP_C,
     _DP_E,
     N_P,
+    P_BATH,
+    P_BATH_END,
     P_BEND,
     P_BENDQ,
     P_CELL,
@@ -498,6 +500,8 @@ def simulate(
     max_steps: int = 2_000_000,
     v_max: float = 100.0,
     bending: str = DEFAULT_BENDING,
+    settle_bath: float = 0.0,
+    bath_until: float | None = None,
 ) -> SimResult:
     """Simulate the cloth and return its state at the requested frame times.
 
@@ -529,6 +533,12 @@ def simulate(
             a flat rest shape, constant Hessian, a 3x cheaper bending force; flat rest
             shapes only), or "auto" (quadratic on a flat bending rest shape, dihedral
             otherwise). The same ``bend`` [N m] in all. See docs/cloth_parameters.md.
+        settle_bath: viscous damping rate [1/s] applied to every free vertex (a = ... - c v)
+            while t < ``bath_until``: a preparation that brings a swatch hanging from its grips to
+            rest before the filmed motion starts (dynamic relaxation), so that the state at frame 0
+            is the static equilibrium of the parameters rather than a phase of a swing that depends
+            on them and on the settle's length. 0 (default): off.
+        bath_until: end of the bath [s] (default ``times[0]``).
 
     Returns:
         :class:`SimResult`; never raises for a diverging simulation.
@@ -573,8 +583,12 @@ def simulate(
                 f"self_collision_thickness {h} m is too large for this mesh: {rest_pairs.shape[0]} "
                 f"vertex-triangle and {rest_epairs.shape[0]} edge-edge pairs already touch at rest (shortest edge {mesh.min_rest_edge():.4g} m)"
             )
+    if not (math.isfinite(settle_bath) and settle_bath >= 0):
+        raise ClothInputError(f"settle_bath must be a finite damping rate >= 0 [1/s], got {settle_bath!r}")
     model = _model(mesh, params, w)
     P = _param_vector(mesh, params, self_collision, bending)
+    P[P_BATH] = float(settle_bath)
+    P[P_BATH_END] = float(times[0]) if bath_until is None else float(bath_until)
     drv = _drv(driver)
     col = _col(colliders)
     free = np.ones(N, dtype=np.bool_)
@@ -589,6 +603,9 @@ def simulate(
             if not (dt > 0 and math.isfinite(dt)):
                 raise ClothInputError(f"dt must be a positive finite step [s], got {dt!r}")
             dt_used = float(dt)
+        if settle_bath * dt_used > 0.5:
+            raise ClothInputError(f"settle_bath {settle_bath} 1/s is too strong for the step {dt_used:.3g} s "
+                                  f"(explicit damping needs settle_bath * dt <= 0.5)")
         out, outv, done, status, steps, rej, nev, halvings, dt_used = _fast_with_retry(
             t0, x, v, times, model, P, drv, col, dt_used, int(max_steps), float(v_max),
             FAST_MAX_HALVINGS if dt is None else 0)

@@ -100,6 +100,7 @@ class ModelSettings:
 
     resolution: int = 20
     settle_s: float = 0.5
+    settle_bath: float = 0.0
     integrator: str = "fast"
     skirt_rings: int = 8
     skirt_around: int = 24
@@ -224,7 +225,8 @@ class ClothObjective:
         for tr, (mesh, drv, t0, col), p in zip(self.trials, self._rigs, plist):
             t = time.perf_counter()
             try:
-                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col)
+                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
+                               settle_bath=self.model.settle_bath)
             except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
                 timing["simulate"] += time.perf_counter() - t
                 out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"

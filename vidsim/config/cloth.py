@@ -148,11 +148,13 @@ class ClothModelConfig:
     """The estimator's simulator (:mod:`vidsim.cloth`) as used by the objective.
 
     ``resolution``: vertices per side of the swatch; ``settle_s``: rest time before frame 0
-    (grips still); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
+    (grips still); ``settle_bath``: viscous damping rate of that settle, 1/s (0 = off: the
+    model starts the clip still swinging from its flat start); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
     """
 
     resolution: int = 20
     settle_s: float = 0.5
+    settle_bath: float = 0.0
     integrator: str = "fast"
     frame_stride: int = 1
     max_frames: int = 0

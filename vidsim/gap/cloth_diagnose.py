@@ -534,7 +534,7 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
     res_f = int(cfg.floor_resolution) or int(st.resolution)
     mesh = swatch_model_mesh(st.corner_paths[0], res_f, st.size)
     drv, t0 = swatch_driver(mesh, st.times, st.corner_paths, st.settle_s)
-    res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0)
+    res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath)
     if not res.ok:
         raise ClothGapError(f"the floor's twin of the fit failed to simulate: {res.failure}")
     V = res.positions[st.obs]
@@ -549,7 +549,7 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
 
 # ----------------------------------------------------------------------------- driver
 def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list[str], *,
-                   resolution: int = 12, frame_stride: int = 2, settle_s: float = 0.5,
+                   resolution: int = 12, frame_stride: int = 2, settle_s: float = 0.5, settle_bath: float = 0.0,
                    cfg: ClothDiagnoseConfig | None = None, feature_settings=None, alpha: float = 0.1,
                    progress=None) -> ClothDiagnosis:
     """Diagnose the gap between a cloth fit and its footage (blind: no truth).
@@ -557,7 +557,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     Args:
         trial: the footage as the estimator reads it.
         params0: the fit's complete parameters; estimated: the names the fit estimated (the base).
-        resolution, frame_stride, settle_s: the estimator's model settings (``cloth.model``).
+        resolution, frame_stride, settle_s, settle_bath: the estimator's model settings (``cloth.model``).
         cfg: settings; feature_settings: :class:`vidsim.clothfit.features.FeatureSettings` of the
             footage (for the floor's segmentation and the metric terms; default settings if None).
         alpha: the seed metric's silhouette weight.
@@ -577,7 +577,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     if not trial.sil[clip].reshape(clip.size, -1).any(axis=1).all():
         raise ClothGapError("the cloth is not visible in every compared frame (empty silhouettes)")
     setup = ClothSetup(trial.times, trial.corner_paths, clip, trial.camera, trial.size, trial.density,
-                       int(resolution), float(settle_s))
+                       int(resolution), float(settle_s), float(settle_bath))
     cands = [c for c in cfg.candidates]
     base = ClothGapModel(setup, params0, estimated, (), cfg.scale, cfg.ramp)
     dt = base.dt

@@ -256,6 +256,8 @@ class ClothSetup:
         camera: calibrated camera at full resolution.
         size: swatch side, metres; density: kg/m^2.
         resolution: model vertices per side; settle_s: rest before the first frame, seconds.
+        settle_bath: viscous damping rate of the settle, 1/s (0: off; see
+            :func:`vidsim.cloth.simulate`): the model then starts the clip from its equilibrium.
     """
 
     times: np.ndarray
@@ -266,6 +268,7 @@ class ClothSetup:
     density: float
     resolution: int = 12
     settle_s: float = 0.5
+    settle_bath: float = 0.0
 
     def __post_init__(self) -> None:
         self.times = np.asarray(self.times, float)
@@ -447,7 +450,8 @@ class ClothGapModel:
         wind = self.get(theta, "wind") if "wind" in self.slices else None
         self.n_sims += 1
         try:
-            res = simulate(self.mesh, p, drv, self.setup.times, integrator="fast", t0=t0, dt=self.dt, wind=wind)
+            res = simulate(self.mesh, p, drv, self.setup.times, integrator="fast", t0=t0, dt=self.dt, wind=wind,
+                           settle_bath=self.setup.settle_bath)
             out = (res.positions, res.velocities, bool(res.ok))
         except ArithmeticError:
             T, N = self.setup.times.size, self.mesh.n_vertices

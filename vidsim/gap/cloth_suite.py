@@ -61,8 +61,11 @@ class ClothSceneConfig:
         motion: corner motion (:data:`vidsim.reality.cloth.MOTIONS`); n_frames, fps: the clip.
         twin_resolution: the twin reality's mesh; twin_params: its stiffness and drag (others at
             the model's fixed mid-range values unless a case's effect sets them).
-        mujoco_resolution: the MuJoCo reality's mesh; settle_s: reality's rest before frame 0.
-        resolution, frame_stride, settle_s_model: the estimator's model (``cloth.model``).
+        mujoco_resolution: the MuJoCo reality's mesh; settle_s: reality's rest before frame 0;
+            settle_bath: its viscous damping rate, 1/s (0: the swatch starts the motion still
+            swinging from its flat start, at a phase that depends on its stiffness).
+        resolution, frame_stride, settle_s_model, settle_bath_model: the estimator's model
+            (``cloth.model``).
         estimate: the fit's estimated parameters; grid_levels, budget: the fit (grid over bend,
             stretch and shear, then annealing).
         n_background: empty frames before the clip.
@@ -82,9 +85,11 @@ class ClothSceneConfig:
         "bend": 3e-6, "stretch": 300.0, "shear": 40.0, "drag_linear": 0.4, "drag_quad": 0.8})
     mujoco_resolution: int = 15
     settle_s: float = 1.0
+    settle_bath: float = 0.0
     resolution: int = 12
     frame_stride: int = 1
     settle_s_model: float = 0.5
+    settle_bath_model: float = 0.0
     estimate: list[str] = field(default_factory=lambda: ["bend", "stretch", "shear", "drag_linear", "drag_quad"])
     grid_levels: int = 3
     budget: int = 30
@@ -205,12 +210,14 @@ def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None)
         g = np.arange(0, int(np.ceil(tc.max() * fps)) + 3) / fps
         mesh = swatch_model_mesh(true_path(g[:1])[0], int(scene.twin_resolution), 0.3)
         drv, t0 = swatch_driver(mesh, g, true_path(g), float(scene.settle_s))
+        bath = float(scene.settle_bath)
         wind = np.asarray(eff["wind"], float) if "wind" in eff else None
         if "gust" in eff:
             gu = dict(eff["gust"])
             ts = float(gu.get("start_s", 0.8))
             before = tc[tc < ts]
-            r1 = simulate(mesh, p, drv, np.r_[before, ts], integrator="fast", t0=t0)
+            r1 = simulate(mesh, p, drv, np.r_[before, ts], integrator="fast", t0=t0, settle_bath=bath,
+                          bath_until=0.0)
             if not r1.ok:
                 raise ClothGapError(f"twin reality failed before the gust: {r1.failure}")
             r2 = simulate(mesh, p, drv, tc[tc >= ts], integrator="fast", t0=ts, x0=r1.positions[-1],
@@ -218,7 +225,8 @@ def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None)
             ok, failure = r2.ok, r2.failure
             V = np.concatenate([r1.positions[:-1], r2.positions])
         else:
-            res = simulate(mesh, p, drv, tc, integrator="fast", t0=t0, wind=wind)
+            res = simulate(mesh, p, drv, tc, integrator="fast", t0=t0, wind=wind, settle_bath=bath,
+                           bath_until=0.0)
             ok, failure, V = res.ok, res.failure, res.positions
         if not ok:
             raise ClothGapError(f"twin reality failed: {failure}")
@@ -234,7 +242,8 @@ def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None)
     else:
         fabric = fabric_profile(str(case.get("fabric", "linen")))
         run = simulate_swatch(fabric, motion, {k: {**v, "on": True} for k, v in eff.items()}, rng, n_frames=n, fps=fps,
-                              resolution=int(scene.mujoco_resolution), size=0.3, settle=float(scene.settle_s))
+                              resolution=int(scene.mujoco_resolution), size=0.3, settle=float(scene.settle_s),
+                              settle_bath=float(scene.settle_bath))
         if not run.ok:
             raise ClothGapError(f"MuJoCo reality failed: {run.failure}")
         V, F, measured, density = run.vertices, run.faces, run.corner_paths_measured, fabric["areal_density"]
@@ -278,7 +287,8 @@ def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothP
     space = space_from_config({k: full[k] for k in scene.estimate})
     tr = fit_trial.strided(int(scene.frame_stride))
     obj = ClothObjective([tr], space, model=ModelSettings(resolution=int(scene.resolution),
-                                                          settle_s=float(scene.settle_s_model)))
+                                                          settle_s=float(scene.settle_s_model),
+                                                          settle_bath=float(scene.settle_bath_model)))
     grid = [p for p in ("bend", "stretch", "shear") if p in scene.estimate]
     r = fit(obj, grid_params=grid, levels=int(scene.grid_levels), budget=int(scene.budget),
             anneal_cfg=AnnealConfig(evals_per_T=6, step=0.12), seed=0)
@@ -376,7 +386,8 @@ def run_case(case: dict, scene: ClothSceneConfig | None = None, dcfg: ClothDiagn
     t_fit = time.perf_counter() - t - t_real
     fs = FeatureSettings(**OmegaConf.to_container(c.features, resolve=True))
     diag = diagnose_cloth(cc.trial, p_fit, list(scene.estimate), resolution=int(scene.resolution),
-                          frame_stride=int(scene.frame_stride), settle_s=float(scene.settle_s_model), cfg=dcfg,
+                          frame_stride=int(scene.frame_stride), settle_s=float(scene.settle_s_model),
+                          settle_bath=float(scene.settle_bath_model), cfg=dcfg,
                           feature_settings=fs, alpha=float(c.fit.alpha), progress=progress)
     sc = score_case(case, diag, cc.truth, scene)
     sc.update(footprints(case, cc, scene, c))

@@ -482,6 +482,7 @@ def simulate_swatch(
     size: float = 0.3,
     dt: float = 0.002,
     settle: float = 1.0,
+    settle_bath: float = 0.0,
 ) -> ClothRealityRun:
     """Simulate a square swatch hanging from two kinematically moved top corners.
 
@@ -500,6 +501,9 @@ def simulate_swatch(
         size: side of the square swatch, m.
         dt: MuJoCo time step, s (reduced automatically when explicit edge springs need it).
         settle: rest time before frame 0, s.
+        settle_bath: viscous damping rate of the settle, 1/s (velocities scaled by
+            ``exp(-settle_bath dt)`` every settle step; 0: off, the swatch starts the motion
+            still swinging from its flat start).
 
     Returns:
         :class:`ClothRealityRun` (``ok=False`` with a message if the simulation diverged).
@@ -513,6 +517,8 @@ def simulate_swatch(
         raise ClothRealityError(f"resolution must be an integer >= 3, got {resolution!r}")
     if not (fps > 0 and dt > 0 and size > 0 and settle >= 0):
         raise ClothRealityError(f"fps, dt, size must be > 0 and settle >= 0, got {fps}, {dt}, {size}, {settle}")
+    if not (np.isfinite(settle_bath) and settle_bath >= 0):
+        raise ClothRealityError(f"settle_bath must be a finite damping rate >= 0 (1/s), got {settle_bath!r}")
     gust_phases = rng.uniform(0, 2 * np.pi, 3)
     jitter_phase = rng.uniform(0, 2 * np.pi, (2, 3))
 
@@ -594,7 +600,7 @@ def simulate_swatch(
 
     out, true_corners, failure, wall = _drive(
         m, d, kin, corner_state, apply_forces if (air_on or k_eff > 0) else None,
-        n_settle, n_frames, fps, substeps, dt_used, size,
+        n_settle, n_frames, fps, substeps, dt_used, size, settle_bath,
     )
     n_done = len(out)
     if eff["grip_slip"]["on"] or eff["mocap_noise"]["on"]:
@@ -639,8 +645,9 @@ def _drive(
     substeps: int,
     dt: float,
     scale: float,
+    settle_bath: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, str | None, float]:
-    """Settle at rest, then step with prescribed grips and record ``flexvert_xpos`` per frame.
+    """Settle at rest (velocities damped at ``settle_bath`` 1/s), then step with prescribed grips and record ``flexvert_xpos`` per frame.
 
     Returns:
         ``(vertices (T', N, 3), grips (T', G, 3), failure or None, wall seconds)`` with ``T'``
@@ -661,8 +668,11 @@ def _drive(
         mujoco.mj_step(m, d)
 
     zero = np.zeros_like(p_rest)
+    keep = float(np.exp(-settle_bath * dt))
     for _ in range(n_settle):  # settle at rest (t < 0: grips held still)
         step(p_rest, zero, 0.0)
+        if settle_bath > 0:
+            d.qvel[:] *= keep
     n_done = 0
     for frame in range(n_frames):
         if frame > 0:
