@@ -4,9 +4,10 @@ damping, MuJoCo flex comparison, and cost growth with resolution.
 Usage::
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/bench_cloth_sim.py \
-        [speed force damping mujoco scaling resolution]
+        [speed force damping mujoco scaling resolution settle]
 
-(no argument: all but ``resolution``, which takes ~5 CPU-minutes).
+(no argument: all but ``resolution``, which takes ~5 CPU-minutes, and ``settle``, the gap
+suite's swatch at rest with and without the settle bath, docs/gap.md).
 
 Case (issue 4): a 20x20-vertex swatch, 0.3 m, 0.2 kg/m^2, its two top corners waved
 (5 cm sideways at 1.5 Hz, 8 cm back and forth at 1 Hz, 3 cm up-down) from rest: the
@@ -427,6 +428,33 @@ def bench_resolution() -> None:
           f"{100 * np.max(np.linalg.norm(a - b, axis=-1)) / SIZE:.2f} % of the swatch size")
 
 
+def bench_settle() -> None:
+    """The gap suite's swatch (12x12, twin truth, motion exp1): frame-0 speed with and without the
+    settle bath, and how far runs that differ only in their settle drift apart afterwards."""
+    from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
+    from vidsim.gap.cloth_suite import ClothSceneConfig, twin_truth_params
+    from vidsim.reality.cloth import corner_paths, swatch_motion
+
+    p = twin_truth_params(ClothSceneConfig(), {})
+    g = np.arange(0, 19) / 30
+    cp = corner_paths(swatch_motion("exp1"), g)
+    runs = {}
+    for c in (0.0, 10.0, 20.0, 40.0):
+        for settle in (0.5, 1.0, 4.0):
+            mesh = swatch_model_mesh(cp[0], 12, 0.3)
+            drv, t0 = swatch_driver(mesh, g, cp, settle)
+            r = simulate(mesh, p, drv, g, integrator="fast", t0=t0, settle_bath=c)
+            runs[(c, settle)] = r.positions
+            v = np.linalg.norm(r.velocities[0], axis=1)
+            print(f"settle {settle:3.1f} s, bath {c:4.1f} 1/s: frame-0 speed mean {1e3 * v.mean():6.2f} mm/s "
+                  f"max {1e3 * v.max():6.2f} mm/s", flush=True)
+    ref = runs[(40.0, 4.0)]
+    for k, P in runs.items():
+        d = 1e3 * np.linalg.norm(P - ref, axis=2).mean(axis=1)
+        print(f"settle {k[1]:3.1f} s, bath {k[0]:4.1f}: mean distance to (4 s, bath 40) at frames 0/9/18: "
+              f"{d[0]:.3f} / {d[9]:.2f} / {d[18]:.2f} mm")
+
+
 def main(argv: list[str]) -> None:
     which = set(argv) or {"speed", "force", "damping", "mujoco", "scaling"}
     print(f"cloth simulator benchmark; numba threads = {os.environ.get('NUMBA_NUM_THREADS')}")
@@ -441,6 +469,8 @@ def main(argv: list[str]) -> None:
         bench_scaling()
     if "resolution" in which:
         bench_resolution()
+    if "settle" in which:
+        bench_settle()
 
 
 if __name__ == "__main__":

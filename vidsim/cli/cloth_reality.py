@@ -142,7 +142,8 @@ def _swatch_mujoco(rc: DictConfig, effects: dict, rng: np.random.Generator) -> t
     print(f"reality_cloth: mujoco {rc.fabric}/{rc.motion}, {rc.n_frames} frames at {rc.fps} Hz", flush=True)
     fabric = fabric_profile(str(rc.fabric))
     run_ = simulate_swatch(fabric, swatch_motion(str(rc.motion)), effects, rng, n_frames=int(rc.n_frames),
-                           fps=float(rc.fps), resolution=int(rc.resolution), size=SIZE_M, settle=float(rc.settle_s))
+                           fps=float(rc.fps), resolution=int(rc.resolution), size=SIZE_M, settle=float(rc.settle_s),
+                           settle_bath=float(rc.settle_bath))
     if not run_.ok:
         raise ClothStageError(f"reality_cloth {rc.fabric}/{rc.motion}: MuJoCo reality failed: {run_.failure}")
     truth = {"kind": "mujoco", "fabric": fabric, **{k: v for k, v in run_.truth.items() if k != "fabric"}}
@@ -157,7 +158,8 @@ def _swatch_twin(rc: DictConfig) -> tuple:
     tp = OmegaConf.to_container(rc.twin_params, resolve=True)
     params = ClothParams(**tp)
     V, F, cp, ok, failure = twin_swatch(params, lambda t: corner_paths(motion, t), int(rc.n_frames), float(rc.fps),
-                                        int(rc.twin_resolution), size=SIZE_M, settle_s=float(rc.settle_s))
+                                        int(rc.twin_resolution), size=SIZE_M, settle_s=float(rc.settle_s),
+                                        settle_bath=float(rc.settle_bath))
     if not ok:
         raise ClothStageError(f"reality_cloth twin/{rc.motion}: the twin simulation failed: {failure}")
     times = np.arange(int(rc.n_frames)) / float(rc.fps)

@@ -193,7 +193,8 @@ def swatch_driver(mesh: ClothMesh, times: np.ndarray, corner_paths: np.ndarray, 
 
 
 def twin_swatch(params: ClothParams, corner_paths_fn, n_frames: int, fps: float, resolution: int,
-                size: float = 0.3, settle_s: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, str | None]:
+                size: float = 0.3, settle_s: float = 1.0, settle_bath: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, str | None]:
     """The twin reality: the estimator's simulator on a finer mesh with known parameters.
 
     Args:
@@ -202,7 +203,7 @@ def twin_swatch(params: ClothParams, corner_paths_fn, n_frames: int, fps: float,
         n_frames, fps: frames and rate.
         resolution: vertices per side (finer than the estimator's).
         size: side length, metres.
-        settle_s: rest before frame 0.
+        settle_s: rest before frame 0; settle_bath: its viscous damping rate, 1/s (0: off).
 
     Returns:
         ``(vertices (T, N, 3), faces, corner_paths (T, 2, 3), ok, failure)``.
@@ -211,5 +212,5 @@ def twin_swatch(params: ClothParams, corner_paths_fn, n_frames: int, fps: float,
     cp = np.asarray(corner_paths_fn(times), float)
     mesh = swatch_model_mesh(cp[0], resolution, size)
     drv, t0 = swatch_driver(mesh, times, cp, settle_s)
-    res = simulate(mesh, params, drv, times, integrator="fast", t0=t0)
+    res = simulate(mesh, params, drv, times, integrator="fast", t0=t0, settle_bath=settle_bath)
     return res.positions[: res.frames_done], mesh.triangles, cp, bool(res.ok), res.failure

@@ -97,6 +97,8 @@ class ClothRealityConfig:
     Imaging effects: ``motion_blur`` sub-samples per exposure (0 off) with ``exposure`` as a
     fraction of the frame interval, ``lens_k1`` radial distortion unknown to the calibration,
     ``projector_misalign_deg`` a rotation of the projector after calibration.
+    ``settle_s``: rest before frame 0 (grips still); ``settle_bath``: viscous damping rate of that
+    rest, 1/s, for swatches (0 = off: the swatch starts the motion still swinging from its flat start).
     """
 
     kind: str = "mujoco"
@@ -107,6 +109,7 @@ class ClothRealityConfig:
     fps: float = 30.0
     resolution: int = 15
     settle_s: float = 1.0
+    settle_bath: float = 0.0
     n_background: int = 5
     albedo: float = 0.85
     noise_sigma: float = 2.0
