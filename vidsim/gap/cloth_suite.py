@@ -286,9 +286,13 @@ def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothP
     full = OmegaConf.to_container(c.fit.space, resolve=True)
     space = space_from_config({k: full[k] for k in scene.estimate})
     tr = fit_trial.strided(int(scene.frame_stride))
+    from vidsim.clothfit.features import FeatureSettings
+
+    fs = FeatureSettings(**OmegaConf.to_container(c.features, resolve=True))
     obj = ClothObjective([tr], space, model=ModelSettings(resolution=int(scene.resolution),
                                                           settle_s=float(scene.settle_s_model),
-                                                          settle_bath=float(scene.settle_bath_model)))
+                                                          settle_bath=float(scene.settle_bath_model)),
+                         features=fs, alpha=float(c.fit.alpha))
     grid = [p for p in ("bend", "stretch", "shear") if p in scene.estimate]
     r = fit(obj, grid_params=grid, levels=int(scene.grid_levels), budget=int(scene.budget),
             anneal_cfg=AnnealConfig(evals_per_T=6, step=0.12), seed=0)
