@@ -101,3 +101,35 @@ def test_fd_steps_move_the_image_by_the_target():
     # the probe (a quarter of each typical scale) moves the image by far more than that
     assert np.all(hs[14:] < 0.05 * 0.25 * model.x_scale()[14:])
     assert RIGID_EFFECTS["quadratic_drag"].units == "kg/m^3"
+
+
+def test_rolling_shutter_staircase_is_close_to_a_per_row_read_out(monkeypatch):
+    """The model renders the read-out as RS_SLABS slabs; against a near per-row staircase (240
+    slabs at 240 rows) it must differ far less than the 6 slabs used before session 18, whose
+    misfit halved the suite's read-out estimate (docs/gap.md)."""
+    import vidsim.gap.rigid_model as rm
+
+    body, _ = t_object()
+    model = _model(body, ("rolling_shutter",))
+    p = np.zeros(14)
+    p[0:3] = [-0.8, 0.1, 2.2]
+    p[6:9] = [2.6, -3.0, 0.1]
+    p[9:12] = [3.0, -4.0, 5.0]
+    theta = np.r_[p, 0.02]
+
+    def render(slabs: int) -> np.ndarray:
+        monkeypatch.setattr(rm, "RS_SLABS", slabs)
+        img, ok = model.render(theta)
+        assert ok
+        return img
+
+    default = rm.RS_SLABS
+    assert 12 <= default < 240
+    fine = render(240)
+    d_default = np.abs(render(default) - fine).sum()  # measured: 275 (24 slabs) vs 1116 (6)
+    d_six = np.abs(render(6) - fine).sum()
+    monkeypatch.undo()
+    no_rs, _ = model.render(np.r_[p, 0.0])
+    d_effect = np.abs(no_rs - fine).sum()  # 8794: the 20 ms read-out itself
+    assert 0 < d_default < 0.3 * d_six
+    assert d_default < 0.05 * d_effect
