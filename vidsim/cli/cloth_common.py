@@ -122,7 +122,10 @@ def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
                                               settle_bath=float(m.settle_bath), integrator=str(m.integrator),
                                               skirt_rings=int(cfg.cloth.skirt.model_rings),
                                               skirt_around=int(cfg.cloth.skirt.model_around),
-                                              skirt_rest_bend=str(cfg.cloth.skirt.model_rest_bend)),
+                                              skirt_rest_bend=str(cfg.cloth.skirt.model_rest_bend),
+                                              skirt_fold_members=int(cfg.cloth.skirt.model_fold_members),
+                                              skirt_fold_amplitude=float(cfg.cloth.skirt.model_fold_amplitude),
+                                              skirt_fold_seed=int(cfg.cloth.skirt.model_fold_seed)),
                           features=feature_settings(cfg), alpha=float(cfg.cloth.fit.alpha))
 
 

@@ -8,7 +8,9 @@ Reality films a MuJoCo skirt of each fabric on a skipping body (``reality_cloth`
 ``cloth.reality.object=skirt``); the body's motion is known (``meta.yaml``: waist pose and leg
 capsules per frame, like motion capture). Here the estimator's simulator dresses that motion with
 each fabric's *selected* swatch parameters (never refitted on skirts), films it with the calibrated
-camera and projector, and scores it against every skirt footage with the swatch metric:
+camera and projector, and scores it against every skirt footage with the swatch metric, averaged
+over ``cloth.skirt.model_fold_members`` fold-seeded starts (the footage's fold pattern is not a
+known input; the videos show the first member):
 ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: skirt footage; the diagonal should win
 each column), ``skirt.yaml`` (matrix, wins), per fabric ``side_by_side_<fabric>.mp4`` (footage |
 simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
@@ -64,9 +66,14 @@ def run(cfg: DictConfig) -> None:
                 lg.mesh3d(f"world/{fab}/skirt", r.positions[0][k], tris, color=(0.2, 0.5, 0.9))
                 lg.scalar(f"metric/{fab}/error", float(r.e_fold[0][k] + cfg.cloth.fit.alpha * r.e_silh[0][k]))
     _stills_figure(stills, out / "side_by_side.png")
+    members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
     write_yaml(out / "skirt.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
                                     "of": n, "wins_per_footage": dict(zip(fabrics, wins)), "params": pfiles,
-                                    "footage": footage})
+                                    "footage": footage,
+                                    "model": {"rings": int(sk.model_rings), "around": int(sk.model_around),
+                                              "rest_bend": str(sk.model_rest_bend), "fold_members": members,
+                                              "fold_amplitude_m": float(sk.model_fold_amplitude),
+                                              "fold_seed": int(sk.model_fold_seed)}})
     print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}", flush=True)
 
 

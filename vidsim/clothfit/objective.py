@@ -24,7 +24,7 @@ import numpy as np
 from vidsim.cloth import ESTIMATED_NAMES, ClothParams, mid_range_params, simulate
 from vidsim.clothfit.features import ClothFeatures, FeatureSettings, angle_features
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
-from vidsim.clothfit.rig import SkirtBody, skirt_model_rig
+from vidsim.clothfit.rig import SkirtBody, skirt_fold_starts, skirt_model_rig
 from vidsim.errors import VidsimError
 from vidsim.optim import FAILED_SCORE
 from vidsim.optim.space import Space
@@ -95,7 +95,10 @@ class ModelSettings:
 
     ``resolution``: swatch vertices per side; ``skirt_rings``/``skirt_around``: the skirt model's
     rings and vertices per ring; ``skirt_rest_bend``: its bending rest state
-    (:data:`vidsim.clothfit.rig.SKIRT_REST_BEND`).
+    (:data:`vidsim.clothfit.rig.SKIRT_REST_BEND`); ``skirt_fold_members`` > 0 with
+    ``skirt_fold_amplitude`` > 0 [m]: a skirt trial's error is the mean over that many fold-seeded
+    starts (:func:`vidsim.clothfit.rig.skirt_fold_starts`, seed ``skirt_fold_seed``); 0: one start
+    in the symmetric cone.
     """
 
     resolution: int = 20
@@ -105,6 +108,9 @@ class ModelSettings:
     skirt_rings: int = 8
     skirt_around: int = 24
     skirt_rest_bend: str = "cone"
+    skirt_fold_members: int = 0
+    skirt_fold_amplitude: float = 0.0
+    skirt_fold_seed: int = 0
 
 
 @dataclass
@@ -162,6 +168,11 @@ class ClothObjective:
             raise ObjectiveError("objective needs at least one trial")
         if model.integrator not in ("fast", "rk45"):
             raise ObjectiveError(f"cloth.model.integrator must be 'fast' or 'rk45', got {model.integrator!r}")
+        if int(model.skirt_fold_members) != model.skirt_fold_members or model.skirt_fold_members < 0:
+            raise ObjectiveError(f"cloth.skirt.model_fold_members must be an integer >= 0, got {model.skirt_fold_members!r}")
+        if not (np.isfinite(model.skirt_fold_amplitude) and model.skirt_fold_amplitude >= 0):
+            raise ObjectiveError(f"cloth.skirt.model_fold_amplitude must be a finite length >= 0 m, "
+                                 f"got {model.skirt_fold_amplitude!r}")
         self.trials = trials
         self.space = space
         self.model = model
@@ -173,20 +184,29 @@ class ClothObjective:
         self.fixed = dict(fixed or {})
         self._rigs = []
         for tr in trials:
+            starts: list = [None]
             if tr.skirt is not None:
                 mesh, drv, t0, col = skirt_model_rig(tr.skirt, tr.times, model.skirt_rings, model.skirt_around,
                                                      model.settle_s, model.skirt_rest_bend)
+                if model.skirt_fold_members > 0 and model.skirt_fold_amplitude > 0:
+                    starts = skirt_fold_starts(mesh, tr.skirt, model.skirt_fold_members, model.skirt_fold_amplitude,
+                                               model.skirt_fold_seed)
             else:
                 mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
                 drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)
                 col = None
-            self._rigs.append((mesh, drv, t0, col))
+            self._rigs.append((mesh, drv, t0, col, starts))
         self.n_evals = 0
 
     @property
     def meshes(self) -> list:
         """The model mesh of each trial (:class:`~vidsim.cloth.ClothMesh`)."""
         return [r[0] for r in self._rigs]
+
+    @property
+    def starts(self) -> list[list]:
+        """Per trial its start positions (``[None]``: the mesh's rest state; skirts: the fold seeds)."""
+        return [r[4] for r in self._rigs]
 
     # ------------------------------------------------------------------ parameters
     def params(self, theta: np.ndarray, density: float) -> ClothParams:
@@ -222,38 +242,45 @@ class ClothObjective:
         per, ef, es = [], [], []
         out = EvalResult(FAILED_SCORE, per, ef, es, True, None, timing)
         self.n_evals += 1
-        for tr, (mesh, drv, t0, col), p in zip(self.trials, self._rigs, plist):
-            t = time.perf_counter()
-            try:
-                res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
-                               settle_bath=self.model.settle_bath)
-            except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
+        for tr, (mesh, drv, t0, col, starts), p in zip(self.trials, self._rigs, plist):
+            # a skirt's fold-seeded ensemble: the trial's errors are the members' means (member 0 is kept)
+            m_e, m_fold, m_silh = [], [], []
+            for k, x0 in enumerate(starts):
+                t = time.perf_counter()
+                try:
+                    res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
+                                   settle_bath=self.model.settle_bath, x0=x0)
+                except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
+                    timing["simulate"] += time.perf_counter() - t
+                    out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"
+                    return out
                 timing["simulate"] += time.perf_counter() - t
-                out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"
-                return out
-            timing["simulate"] += time.perf_counter() - t
-            if not res.ok:
-                out.ok, out.failure = False, f"{tr.name}: {res.failure}"
-                return out
-            t = time.perf_counter()
-            img, depth = render_stripes_batch(res.positions, mesh.triangles, tr.camera, tr.projector, shadows=True)
-            sil = np.isfinite(depth)
-            timing["render"] += time.perf_counter() - t
-            t = time.perf_counter()
-            th, _ = angle_features(img, sil, self.features)
-            timing["anglemap"] += time.perf_counter() - t
-            t = time.perf_counter()
-            f = tr.features
-            e, e_fold, e_silh = cloth_metric(f.theta, f.mask, f.sil, th, sil, alpha=self.alpha)
-            timing["metric"] += time.perf_counter() - t
-            per.append(e)
-            ef.append(e_fold)
-            es.append(e_silh)
-            if keep:
-                out.positions.append(res.positions)
-                out.theta_sim.append(th)
-                out.sil_sim.append(sil)
-                out.images.append(img)
+                if not res.ok:
+                    member = f" (fold-seeded start {k})" if x0 is not None else ""
+                    out.ok, out.failure = False, f"{tr.name}{member}: {res.failure}"
+                    return out
+                t = time.perf_counter()
+                img, depth = render_stripes_batch(res.positions, mesh.triangles, tr.camera, tr.projector, shadows=True)
+                sil = np.isfinite(depth)
+                timing["render"] += time.perf_counter() - t
+                t = time.perf_counter()
+                th, _ = angle_features(img, sil, self.features)
+                timing["anglemap"] += time.perf_counter() - t
+                t = time.perf_counter()
+                f = tr.features
+                e, e_fold, e_silh = cloth_metric(f.theta, f.mask, f.sil, th, sil, alpha=self.alpha)
+                timing["metric"] += time.perf_counter() - t
+                m_e.append(e)
+                m_fold.append(e_fold)
+                m_silh.append(e_silh)
+                if keep and k == 0:
+                    out.positions.append(res.positions)
+                    out.theta_sim.append(th)
+                    out.sil_sim.append(sil)
+                    out.images.append(img)
+            per.append(float(np.mean(m_e)))
+            ef.append(np.mean(m_fold, axis=0))
+            es.append(np.mean(m_silh, axis=0))
         out.score = float(sum(per))
         if not np.isfinite(out.score):
             out.ok, out.failure, out.score = False, "non-finite metric", FAILED_SCORE

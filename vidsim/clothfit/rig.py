@@ -19,7 +19,7 @@ import numpy as np
 from vidsim.cloth import ClothMesh, Colliders, DrivenVertices, skirt
 from vidsim.errors import VidsimError
 
-__all__ = ["RigError", "SkirtBody", "skirt_model_rig", "skirt_model_mesh"]
+__all__ = ["RigError", "SkirtBody", "skirt_fold_starts", "skirt_model_rig", "skirt_model_mesh"]
 
 
 class RigError(VidsimError):
@@ -179,3 +179,53 @@ def skirt_model_rig(body: SkirtBody, times: np.ndarray, rings: int, around: int,
     K = tc.size
     col = Colliders(tc, np.zeros((K, 0, 3)), np.zeros(0), legs[:, :, 0], legs[:, :, 1], np.full(2, body.leg_radius))
     return mesh, drv, t0, col
+
+
+#: angular orders of the fold seeds (folds around the hem; the footage's skirts hang in ~4-8)
+FOLD_ORDERS = tuple(range(3, 9))
+
+
+def skirt_fold_starts(mesh: ClothMesh, body: SkirtBody, members: int, amplitude: float, seed: int = 0
+                      ) -> list[np.ndarray]:
+    """Fold-seeded start positions of the estimator's skirt: an ensemble over the unseen fold pattern.
+
+    A perfectly symmetric sewn cone is an equilibrium of the model that a real (or MuJoCo) skirt
+    leaves: it buckles into folds while it settles, and where the folds form is a
+    symmetry-breaking choice the footage's known inputs do not give. Each member starts from the
+    cone with a radial displacement ``amplitude * d * w(phi)``: ``d`` the depth below the waistband
+    (0 at the waistband, 1 at the hem), ``w`` a random sum of ``cos(k phi + phase)`` over
+    :data:`FOLD_ORDERS` scaled to ``max |w| = 1``. Member ``m`` draws from
+    ``numpy.random.default_rng([seed, m])``: fixed, reproducible, different per member. The settle
+    before frame 0 then lets the fabric's own stiffness decide how far the seed grows into folds.
+
+    Args:
+        mesh: the model skirt at the frame-0 waist pose (:func:`skirt_model_mesh`).
+        body: the measured body (frame-0 waist pose and axis).
+        members: ensemble size (>= 1).
+        amplitude: largest radial displacement at the hem, metres (> 0).
+        seed: ensemble seed.
+
+    Returns:
+        ``members`` arrays (N, 3) of start positions, metres.
+    """
+    if int(members) != members or members < 1:
+        raise RigError(f"cloth.skirt.model_fold_members must be an integer >= 1, got {members!r}")
+    if not (np.isfinite(amplitude) and 0 < amplitude < body.hem_radius):
+        raise RigError(f"cloth.skirt.model_fold_amplitude must be in (0, hem radius {body.hem_radius} m), "
+                       f"got {amplitude!r}")
+    R0, p0 = np.asarray(body.waist_rot[0], float), np.asarray(body.waist_pos[0], float)
+    X = mesh.rest_positions
+    L = (X - p0) @ R0  # waist frame: z along the waist axis, the waistband in its xy plane
+    phi = np.arctan2(L[:, 1], L[:, 0])
+    depth = np.clip(-L[:, 2], 0.0, None)
+    depth = depth / max(float(depth.max()), 1e-12)
+    radial = np.stack([np.cos(phi), np.sin(phi), np.zeros_like(phi)], axis=1) @ R0.T
+    out = []
+    for m in range(int(members)):
+        rng = np.random.default_rng([int(seed), m])
+        w = np.zeros(X.shape[0])
+        for k in FOLD_ORDERS:
+            w += rng.standard_normal() * np.cos(k * phi + rng.uniform(0.0, 2.0 * np.pi))
+        w /= max(float(np.abs(w).max()), 1e-12)
+        out.append(X + (amplitude * depth * w)[:, None] * radial)
+    return out

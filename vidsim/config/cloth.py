@@ -293,7 +293,10 @@ class ClothSkirtConfig:
     vertices, filmed for ``n_frames`` at ``fps`` in the swatch's studio (same calibrated camera and
     projector). The estimator's skirt has ``model_rings`` x ``model_around`` vertices and the
     bending rest state ``model_rest_bend`` (``cone``: the sewn cone; ``flat``: the fabric's own flat
-    rest state, the seam holding it in the cone).
+    rest state, the seam holding it in the cone). ``model_fold_members`` (> 0) fold-seeded starts
+    with a radial seed of ``model_fold_amplitude`` m at the hem (seed ``model_fold_seed``): a skirt's
+    error is the mean over them (the footage's fold pattern is a symmetry-breaking choice its known
+    inputs do not give; :func:`vidsim.clothfit.rig.skirt_fold_starts`); 0: one start in the cone.
     ``video_frames``: frames of the side-by-side videos (0 = all). ``fabrics``/``params``/``footage``:
     inputs of ``skirt_cloth`` (Snakemake fills them): per fabric its ``params.yaml`` and skirt footage.
     """
@@ -306,6 +309,9 @@ class ClothSkirtConfig:
     model_rings: int = 8
     model_around: int = 24
     model_rest_bend: str = "cone"
+    model_fold_members: int = 8
+    model_fold_amplitude: float = 0.02
+    model_fold_seed: int = 0
     video_frames: int = 0
     fabrics: list[str] = field(default_factory=list)
     params: list[str] = field(default_factory=list)
