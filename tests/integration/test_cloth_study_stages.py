@@ -133,11 +133,14 @@ def test_skirt_matrix_prefers_the_matching_fabric(study):
     _run("vidsim.cli.cloth_skirt", f"paths.results={res}", f"paths.out={out}", "cloth.skirt.fabrics=[linen,knit]",
          f"cloth.skirt.params=[{','.join(files)}]",
          f"cloth.skirt.footage=[{res / 'footage' / 'skirt_linen'},{res / 'footage' / 'skirt_knit'}]",
-         "cloth.skirt.model_rings=4", "cloth.skirt.model_around=12", "cloth.model.settle_s=0.4", "cloth.skirt.fps=30")
+         "cloth.skirt.model_rings=4", "cloth.skirt.model_around=12", "cloth.model.settle_s=0.4", "cloth.skirt.fps=30",
+         "cloth.skirt.model_fold_members=2")
     doc = yaml.safe_load((out / "skirt.yaml").read_text())
     E = doc["matrix"]
-    # the stiff set explains the stiff skirt far better than the stretchy one does (measured 81 vs 332); the
-    # knit column is not asserted: a 4 x 12 model skirt cannot fold the way the soft MuJoCo knit does
+    assert doc["model"]["fold_members"] == 2 and doc["model"]["fold_amplitude_m"] == 0.02
+    # the stiff set explains the stiff skirt far better than the stretchy one does (measured 81 vs 332 with
+    # one start in the exact cone); the knit column is not asserted: a 4 x 12 model skirt cannot fold the way
+    # the soft MuJoCo knit does
     assert E[0][0] < 0.5 * E[1][0], E
     assert doc["wins_per_footage"]["linen"] == 1 and doc["of"] == 2
     for fab in ("linen", "knit"):

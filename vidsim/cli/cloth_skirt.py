@@ -12,7 +12,7 @@ camera and projector, and scores it against every skirt footage with the swatch 
 over ``cloth.skirt.model_fold_members`` fold-seeded starts (the footage's fold pattern is not a
 known input; the videos show the first member):
 ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: skirt footage; the diagonal should win
-each column), ``skirt.yaml`` (matrix, wins), per fabric ``side_by_side_<fabric>.mp4`` (footage |
+each column), ``skirt.yaml`` (matrix, wins, the model skirt's settings), per fabric ``side_by_side_<fabric>.mp4`` (footage |
 simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
 """
 
@@ -47,6 +47,7 @@ def run(cfg: DictConfig) -> None:
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
     matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png")
     nv = int(sk.video_frames)
+    members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
     stills = []
     with make_logger(out / "skirt.rrd", "vidsim.skirt_cloth", cfg.log.rerun) as lg:
         for fab, (tr, frames, r) in zip(fabrics, diag):
@@ -64,9 +65,10 @@ def run(cfg: DictConfig) -> None:
                 lg.mask(f"footage/{fab}/camera/silhouette", tr.features.sil[k])
                 lg.image(f"sim/{fab}/camera/image", sim[k])
                 lg.mesh3d(f"world/{fab}/skirt", r.positions[0][k], tris, color=(0.2, 0.5, 0.9))
-                lg.scalar(f"metric/{fab}/error", float(r.e_fold[0][k] + cfg.cloth.fit.alpha * r.e_silh[0][k]))
+                # with fold-seeded starts the error is the ensemble's mean (the images: its first member)
+                lg.scalar(f"metric/{fab}/{'ensemble_mean_error' if members else 'error'}",
+                          float(r.e_fold[0][k] + cfg.cloth.fit.alpha * r.e_silh[0][k]))
     _stills_figure(stills, out / "side_by_side.png")
-    members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
     write_yaml(out / "skirt.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
                                     "of": n, "wins_per_footage": dict(zip(fabrics, wins)), "params": pfiles,
                                     "footage": footage,

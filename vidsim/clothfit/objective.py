@@ -98,7 +98,7 @@ class ModelSettings:
     (:data:`vidsim.clothfit.rig.SKIRT_REST_BEND`); ``skirt_fold_members`` > 0 with
     ``skirt_fold_amplitude`` > 0 [m]: a skirt trial's error is the mean over that many fold-seeded
     starts (:func:`vidsim.clothfit.rig.skirt_fold_starts`, seed ``skirt_fold_seed``); 0: one start
-    in the symmetric cone.
+    in the exact cone. Defaults as ``cloth.skirt`` (:class:`vidsim.config.cloth.ClothSkirtConfig`).
     """
 
     resolution: int = 20
@@ -108,8 +108,8 @@ class ModelSettings:
     skirt_rings: int = 8
     skirt_around: int = 24
     skirt_rest_bend: str = "cone"
-    skirt_fold_members: int = 0
-    skirt_fold_amplitude: float = 0.0
+    skirt_fold_members: int = 8
+    skirt_fold_amplitude: float = 0.02
     skirt_fold_seed: int = 0
 
 
@@ -173,6 +173,8 @@ class ClothObjective:
         if not (np.isfinite(model.skirt_fold_amplitude) and model.skirt_fold_amplitude >= 0):
             raise ObjectiveError(f"cloth.skirt.model_fold_amplitude must be a finite length >= 0 m, "
                                  f"got {model.skirt_fold_amplitude!r}")
+        if int(model.skirt_fold_seed) != model.skirt_fold_seed or model.skirt_fold_seed < 0:
+            raise ObjectiveError(f"cloth.skirt.model_fold_seed must be an integer >= 0, got {model.skirt_fold_seed!r}")
         self.trials = trials
         self.space = space
         self.model = model
@@ -246,17 +248,17 @@ class ClothObjective:
             # a skirt's fold-seeded ensemble: the trial's errors are the members' means (member 0 is kept)
             m_e, m_fold, m_silh = [], [], []
             for k, x0 in enumerate(starts):
+                member = f" (fold-seeded start {k})" if x0 is not None else ""
                 t = time.perf_counter()
                 try:
                     res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
                                    settle_bath=self.model.settle_bath, x0=x0)
                 except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
                     timing["simulate"] += time.perf_counter() - t
-                    out.ok, out.failure = False, f"{tr.name}: simulator raised {type(e).__name__}: {e}"
+                    out.ok, out.failure = False, f"{tr.name}{member}: simulator raised {type(e).__name__}: {e}"
                     return out
                 timing["simulate"] += time.perf_counter() - t
                 if not res.ok:
-                    member = f" (fold-seeded start {k})" if x0 is not None else ""
                     out.ok, out.failure = False, f"{tr.name}{member}: {res.failure}"
                     return out
                 t = time.perf_counter()

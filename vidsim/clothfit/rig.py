@@ -189,8 +189,9 @@ def skirt_fold_starts(mesh: ClothMesh, body: SkirtBody, members: int, amplitude:
                       ) -> list[np.ndarray]:
     """Fold-seeded start positions of the estimator's skirt: an ensemble over the unseen fold pattern.
 
-    A perfectly symmetric sewn cone is an equilibrium of the model that a real (or MuJoCo) skirt
-    leaves: it buckles into folds while it settles, and where the folds form is a
+    From the exact sewn cone the model skirt leaves its near-symmetric shape slowly or not at all
+    (measured: a knit-like skirt folds only after ~1 s of settling, fleece- and linen-like ones stay
+    open through 1.5 s), where a real (or MuJoCo) skirt hangs in folds; where the folds form is a
     symmetry-breaking choice the footage's known inputs do not give. Each member starts from the
     cone with a radial displacement ``amplitude * d * w(phi)``: ``d`` the depth below the waistband
     (0 at the waistband, 1 at the hem), ``w`` a random sum of ``cos(k phi + phase)`` over
