@@ -20,13 +20,18 @@ frame of ``sum |a_sim - A_obs|``, the mismatch area in full-resolution pixels, s
    (its silhouette bias refitted): what no dynamics can remove with this model resolution,
    renderer, segmentation and noise (the *rendering + noise* part).
 4. Camera part: the base motion re-rendered through a camera with the imaging and timing
-   candidates (lens, blur, rolling shutter, time offset and rate) fitted on the training frames,
+   candidates (lens, blur, rolling shutter, time offset and rate; not the per-frame jitter, whose
+   freedom would absorb anything) fitted on the training frames,
    the motion unchanged (no re-simulation): what the held-out gap loses is the *camera* part; the
    rest above the floor is the *dynamics* part.
 5. Screen (score test at zero, all frames, at the base refit): ``D_e = g' M^+ g`` per candidate
    block with the base parameters projected out (:func:`vidsim.gap.rigid_diagnose.score_screen`).
 6. Forward selection judged on held-out frames, the rigid rule (``min_excess``, ``min_closure``,
-   a conditional screen for a second effect with ``pairs``).
+   a conditional screen for a second effect with ``pairs``). Time jitter is judged as in the
+   rigid domain: screened beyond an equally free placebo (:func:`placebo_jacobian`), named by its
+   training closure with white fitted errors (``jitter_min_white``), each held-out frame's own
+   error fitted on that frame; its errors are fitted only on frames that move enough to tell
+   their time (``jitter_min_motion_px``).
 7. Where: per frame with motion phases of the grips (fast/slow, turning, start/middle/end), the
    accumulated residual heatmap, per part of the cloth (each mismatched pixel charged to the
    triangle the rasteriser draws there, or at the nearest covered pixel, and the triangle to its
@@ -59,8 +64,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from vidsim.cloth import ClothParams
-from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup
+from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup, hermite, soft_coverage
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search, score_screen
+from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
 
 BAD_RESIDUAL = 1.0
 IMAGING = ("lens_k1", "motion_blur", "rolling_shutter", "time_offset", "time_rate")
@@ -78,6 +84,16 @@ class ClothDiagnoseConfig:
         roi_px: half-width of the band around the outlines, pixels at that scale.
         top_k: screened candidates refitted; max_nfev: residual evaluations per refit.
         min_closure, min_excess: the naming rule (see :mod:`vidsim.gap.rigid_diagnose`).
+        jitter_min_white: time jitter (one time error per frame, judged on the training frames as
+            in the rigid domain) is named only when it closes ``min_closure`` of the training
+            excess and at least this fraction of its fitted errors' variance is not a cubic drift.
+        jitter_min_motion_px: a frame's own time error is fitted only where the frame's fastest
+            vertex moves at least this many pixels (model scale) in the jitter's typical scale
+            (2 ms) at the base refit: a frame before the motion starts cannot say when it was
+            taken, and its fitted error would be noise. Set on the first twin jitter case
+            (docs/gap.md): its frames moved 0.01 and 0.03 px in 2 ms (the first, at rest, took
+            -27 ms where the truth was +3.5 ms) and 0.12-0.56 px after (errors recovered to
+            about 0.5 ms each, started from the truth).
         pairs: forward selection may name a second effect.
         joint_pairs, pair_min_gain: (with ``pairs``) when no single effect is named although a gap remains, refit
             the pairs of the ``top_k`` screened candidates jointly and name a pair that closes
@@ -127,6 +143,8 @@ class ClothDiagnoseConfig:
     max_nfev: int = 8
     min_closure: float = 0.5
     min_excess: float = 0.15
+    jitter_min_white: float = 0.5
+    jitter_min_motion_px: float = 0.1
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
@@ -156,6 +174,10 @@ class ClothDiagnoseConfig:
                                 f"{self.blur_thresholds}")
         if not 0.0 <= self.pair_min_gain <= 1.0:
             raise ClothGapError(f"gap.cloth.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
+        if not (np.isfinite(self.jitter_min_motion_px) and self.jitter_min_motion_px >= 0.0):
+            raise ClothGapError(f"gap.cloth.diagnose.jitter_min_motion_px must be >= 0, got {self.jitter_min_motion_px}")
+        if not 0.0 <= self.jitter_min_white <= 1.0:
+            raise ClothGapError(f"gap.cloth.diagnose.jitter_min_white must be in [0, 1], got {self.jitter_min_white}")
         if self.top_k < 1 or self.max_nfev < 1 or self.base_nfev < 1 or self.roi_px < 1:
             raise ClothGapError("gap.cloth.diagnose.top_k, max_nfev and roi_px must be >= 1")
         if self.global_evals < 0 or not (np.isfinite(self.global_width) and self.global_width > 0):
@@ -287,14 +309,62 @@ class Problem(RigidProblem):
                          dtype=object)
         for name, sl in self.model.slices.items():
             kinds[sl] = CLOTH_EFFECTS[name].kind
-        order = [j for j in range(self.model.n_params) if kinds[j] != "dynamics"] + \
+        jit = self.model.slices.get("time_jitter")
+        is_jit = np.zeros(self.model.n_params, bool)
+        if jit is not None:
+            is_jit[jit] = True
+        order = [j for j in range(self.model.n_params) if kinds[j] != "dynamics" and not is_jit[j]] + \
                 [j for j in range(self.model.n_params) if kinds[j] == "dynamics"]
         for j in order:
             h = hs[j] if theta[j] + hs[j] <= hi[j] else -hs[j]
             tp = theta.copy()
             tp[j] += h
             cols[:, j] = (self.residual(tp) - r0) / h
+        if jit is not None:
+            # per-frame time errors are differenced all at once: frame k's column only sees frame
+            # k's rows (one render of the compared frames instead of one per frame)
+            tp = theta.copy()
+            tp[jit] += hs[jit]
+            d = self.residual(tp) - r0
+            row_frame = np.nonzero(self.roi[self.frames])[0]
+            for i, k in enumerate(self.frames):
+                sel = row_frame == i
+                cols[sel, jit.start + k] = d[sel] / hs[jit.start + k]
         return cols
+
+
+def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
+    """(n_res, F) per-frame columns of a placebo for time jitter (the model must hold
+    ``time_jitter``): in frame k every vertex moves in the image *across* its own image velocity
+    (the velocity turned by 90 degrees) by as much as a time error of frame k's jitter step moves it
+    along. Same count and size as the jitter's columns, no timing meaning: what per-frame freedom
+    explains whatever the cause. Rendered without blur (the screen's point has none)."""
+    m = prob.model
+    theta = np.asarray(theta, float)
+    sl = m.slices["time_jitter"]
+    h = prob.step_vector(theta)[sl][prob.frames]
+    P, V, ok = m.simulate(theta)
+    mask = prob.roi[prob.frames]
+    cols = np.zeros((int(mask.sum()), len(prob.frames)))
+    if not ok:
+        return cols
+    cam = m._camera(theta)
+    g = m.setup.times
+    tc = m.capture_times(theta)[prob.frames]
+    bias = float(theta[m.n_est])
+    H, W = cam.height, cam.width
+    row_frame = np.nonzero(mask)[0]
+    for i, t in enumerate(tc):
+        uv0 = cam.project(hermite(g, P, V, np.full(P.shape[1], t)))
+        uv1 = cam.project(hermite(g, P, V, np.full(P.shape[1], t + 1e-4)))
+        perp = np.stack([-(uv1[:, 1] - uv0[:, 1]), uv1[:, 0] - uv0[:, 0]], 1) / 1e-4
+        d = h[i] * np.nan_to_num(perp)
+        cp = soft_coverage(uv0 + d, m.tris, H, W, m.ramp, bias, m.boundary)
+        cm = soft_coverage(uv0 - d, m.tris, H, W, m.ramp, bias, m.boundary)
+        diff = ((cp - cm) / (2 * h[i]))[mask[i]]
+        cols[row_frame == i, i] = diff
+    prob.n_evals += 2
+    return cols
 
 
 def effect_start(prob: Problem, theta0: np.ndarray, effect: str, mults: list[float] | tuple[float, ...]
@@ -576,6 +646,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         raise ClothGapError(f"only {clip.size} compared frames (need >= 8): lower cloth.model.frame_stride")
     if not trial.sil[clip].reshape(clip.size, -1).any(axis=1).all():
         raise ClothGapError("the cloth is not visible in every compared frame (empty silhouettes)")
+    ft = np.asarray(trial.times, float)[clip]
     setup = ClothSetup(trial.times, trial.corner_paths, clip, trial.camera, trial.size, trial.density,
                        int(resolution), float(settle_s), float(settle_bath))
     cands = [c for c in cfg.candidates]
@@ -616,6 +687,10 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     gap_all = pb.gap_per_frame(theta_b, np.arange(T))
     before = float(gap_all[test].mean())
     tr_before = float(gap_all[train].mean())
+    # frames whose capture time the footage can tell (time jitter is fitted on these only)
+    jit_motion = base.image_speed(theta_b) * CLOTH_EFFECTS["time_jitter"].scale
+    timed = jit_motion >= cfg.jitter_min_motion_px
+    train_timed = train[timed[train]]
     note("base refit")
     # 3. floor: the gap of the true parameters on a twin of the fit
     floor_info: dict = {}
@@ -663,7 +738,16 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         k_cur = len(theta_cur)
         blocks = {c: J[:, m.slices[c]] for c in names}
         one_sided = {c: CLOTH_EFFECTS[c].lower is not None and c != "air_drag" for c in names}
+        if "time_jitter" in blocks:
+            # only the frames that can tell their time (as in the refit), jitter and placebo alike
+            blocks["time_jitter"] = blocks["time_jitter"][:, timed]
+            blocks["placebo_jitter"] = placebo_jacobian(pall, theta_ext)[:, timed] * CLOTH_EFFECTS["time_jitter"].scale
         scr = score_screen(J[:, :k_cur], blocks, r, one_sided)
+        if "time_jitter" in scr:
+            # per-frame freedom explains some residual whatever its cause: count only what it
+            # explains beyond an equally free placebo
+            scr["time_jitter"]["fraction_raw"] = scr["time_jitter"]["fraction"]
+            scr["time_jitter"]["fraction"] -= scr["placebo_jitter"]["fraction"]
         for i, c in enumerate(sorted(names, key=lambda c: -scr[c]["fraction"])):
             scr[c]["rank"] = i + 1
         return scr
@@ -679,22 +763,44 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         pe = problem(m, train)
         th0 = theta_b if start is None else start
         th0 = np.r_[th0, np.zeros(m.n_params - len(th0))]
-        th0, n_starts = effect_start(pe, th0, effects[-1], cfg.effect_starts)
+        # (a start search over per-frame time errors one at a time is not meaningful: jitter starts at zero)
+        th0, n_starts = effect_start(pe, th0, effects[-1],
+                                     [] if effects[-1] == "time_jitter" else cfg.effect_starts)
         th0, _ = global_search(pe, th0, cfg.global_evals, cfg.global_width, cfg.seed)
-        th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev), cfg.blur_thresholds)
+        free = None
+        if "time_jitter" in effects:
+            free = np.ones(m.n_params, bool)
+            free[m.slices["time_jitter"]] = timed
+        th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev, free), cfg.blur_thresholds)
         n_sims[0] += m.n_sims
         g = pe.gap_per_frame(th, allf)
+        if "time_jitter" in effects:
+            # the model claims every frame its own time error, and a held-out frame's is not in
+            # the refit: fit that one number on the frame itself (the rigid rule), so that other
+            # effects in the model are judged on held-out frames at their right times
+            # (frames too slow to tell their time keep the refit's zero, as in the refit)
+            test_t = test[timed[test]]
+            if test_t.size:
+                g[test_t] = _heldout_time_fit(m, th, obs, roi, test_t, train_timed)
         after, tr_after = float(g[test].mean()), float(g[train].mean())
         res = {"effects": list(effects), "heldout_before_px": before, "heldout_after_px": after,
                "heldout_closure": (before - after) / excess if excess > 0 else 0.0,
                "train_before_px": tr_before, "train_after_px": tr_after,
                "train_closure": (tr_before - tr_after) / max(tr_before - floor_train_mean, 0.05 * floor_train_mean),
+               "heldout_times_fitted": "time_jitter" in effects,
                "gap_per_frame_after_px": g.tolist(), "params": {}, "theta": th.tolist(), "nfev": info["nfev"],
                "starts_tried": n_starts}
         sd = np.sqrt(np.clip(np.diag(info["cov"]), 0, None))
         for e in effects:
             sl = m.slices[e]
             v = th[sl]
+            if e == "time_jitter":
+                # summaries over the training frames whose time the footage tells (the others stay 0)
+                vt = v[train_timed]
+                res["params"][e] = {"std_s": float(np.std(vt)) if vt.size else 0.0, "lag1_autocorr": _lag1(vt),
+                                    "white_fraction": _white_fraction(ft[train_timed], vt), "values_s": v.tolist(),
+                                    "frames_fitted": np.flatnonzero(timed).tolist(), "units": "s"}
+                continue
             entry = {"value": v.tolist(), "ci95": [(v - 1.96 * sd[sl]).tolist(), (v + 1.96 * sd[sl]).tolist()],
                      "units": CLOTH_EFFECTS[e].units}
             if CLOTH_EFFECTS[e].members:
@@ -706,13 +812,27 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             res["params"]["motion_blur"]["segmentation_threshold"] = info["blur_threshold"]
         return res
 
-    def supported(res: dict, prev: dict | None) -> bool:
+    def train_closure(res: dict, prev: dict | None) -> float:
+        tr0 = tr_before if prev is None else prev["train_after_px"]
+        return (tr0 - res["train_after_px"]) / max(tr0 - floor_train_mean, 0.05 * floor_train_mean)
+
+    def supported(res: dict, added: str, prev: dict | None) -> bool:
+        """The naming rule relative to the model before ``added`` (the rigid domain's): a held-out
+        gap beyond the floor remains and ``added`` closes ``min_closure`` of it; time jitter, whose
+        held-out values are not identified, must close that much of the training excess with white
+        time errors instead."""
         ho0 = before if prev is None else prev["heldout_after_px"]
         if ho0 - floor_mean <= cfg.min_excess * floor_mean:
             return False
+        if added == "time_jitter":
+            return bool(train_closure(res, prev) >= cfg.min_closure
+                        and res["params"][added]["white_fraction"] >= cfg.jitter_min_white)
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
-    def strength(res: dict, prev: dict | None) -> float:
+    def strength(res: dict, added: str, prev: dict | None) -> float:
+        """How much ``added`` closes of what the model before it left (held-out; training for jitter)."""
+        if added == "time_jitter":
+            return train_closure(res, prev)
         ho0 = before if prev is None else prev["heldout_after_px"]
         return (ho0 - res["heldout_after_px"]) / max(ho0 - floor_mean, 1e-9)
 
@@ -737,8 +857,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         for c in pool[: cfg.top_k]:
             effs = tuple(named) + (c,)
             res = judge(effs, None if prev is None else np.asarray(prev["theta"]))
-            res["supported"] = ok = bool(gap_present and supported(res, prev))
-            res["closure_of_remaining"] = strength(res, prev)
+            res["supported"] = ok = bool(gap_present and supported(res, c, prev))
+            res["closure_of_remaining"] = strength(res, c, prev)
             refits["+".join(effs)] = res
             note(f"refit {'+'.join(effs)}")
             if ok and res["closure_of_remaining"] > best_s:
@@ -750,7 +870,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     joint: dict[str, dict] = {}
     if not named and gap_present and cfg.pairs and cfg.joint_pairs:
         named, prev, joint = joint_pair_search(ranked[: cfg.top_k], refits, lambda effs: judge(effs),
-                                               lambda res, added, p: supported(res, p), cfg, note, floor_mean,
+                                               lambda res, added, p: supported(res, added, p), cfg, note, floor_mean,
                                                CLOTH_EFFECTS)
     verdict = ("no gap beyond the noise floor" if not gap_present else
                ("explained by " + ", ".join(named)) if named else "none of the candidates explains the gap")
@@ -792,6 +912,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
                                            "sil_bias_px": float(theta_b[base.n_est])},
                            "base_refit_nfev": info_b["nfev"], "conditional_screens": conditional,
                            "joint_pairs": joint,
+                           "jitter_motion_px": jit_motion.tolist(),
                            "camera_part": camera_part, "floor": floor_info, "skipped_candidates": skipped,
                            "fixed_step_s": dt, "model": {"resolution": int(resolution), "frame_stride": int(frame_stride),
                                                          "estimated": list(estimated)}})

@@ -24,6 +24,7 @@ rendering, segmentation and noise between it and the model). Its effects (all of
                                    ending at the frame time)
     time_offset: dt                frames captured dt s after the mocap clock says
     time_rate: r                   the camera clock runs fast by r
+    time_jitter: s                 each frame captured at its own error, normal with std s seconds
     gust: {wind, start_s}          out of the library: a wind that starts blowing mid-clip
 
 ``kind: mujoco`` films :func:`vidsim.reality.cloth.simulate_swatch` (``fabric``, ``effects`` =
@@ -50,7 +51,7 @@ from vidsim.gap import suite as rigid_suite
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, DAMPING_NAMES, DRAG_NAMES, ClothGapError
 
 TWIN_EFFECTS = ("wind", "gravity_tilt", "damping", "drag", "grip_slip", "lens_k1", "motion_blur", "time_offset",
-                "time_rate", "gust")
+                "time_rate", "time_jitter", "gust")
 
 
 @dataclass
@@ -199,6 +200,15 @@ def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None)
         p = twin_truth_params(scene, eff)
         truth["params"] = {k: (list(v) if isinstance(v, tuple) else float(v)) for k, v in p.__dict__.items()}
         tc = nominal * (1.0 + float(eff.get("time_rate", 0.0))) + float(eff.get("time_offset", 0.0))
+        if "time_jitter" in eff:
+            sj = float(eff["time_jitter"])
+            if not (np.isfinite(sj) and sj >= 0.0):
+                raise ClothGapError(f"cloth case effects: time_jitter = {eff['time_jitter']!r}; expected a std >= 0 in seconds")
+            # one capture-time error per frame (drawn only in cases that have it, so every other
+            # case's noise draws are unchanged); the frames stay in order
+            tc = tc + rng.normal(0.0, sj, n)
+            if np.any(np.diff(tc) <= 0):
+                raise ClothGapError(f"time_jitter {eff['time_jitter']} s reorders frames at {fps} fps: use a smaller one")
         truth["capture_times"] = tc.tolist()
 
         def path(t):
@@ -299,6 +309,15 @@ def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothP
     return obj.params(r.theta, tr.density), {"score": float(r.score), "n_evals": int(r.n_evals)}
 
 
+def _true_time_errors(truth: dict, scene: ClothSceneConfig) -> np.ndarray:
+    """(n,) true capture time minus the time the offset and rate effects give, per frame
+    (the twin's per-frame jitter; zeros without it)."""
+    e = truth.get("effects", {})
+    ct = np.asarray(truth["capture_times"], float)
+    smooth = np.arange(ct.size) / scene.fps * (1.0 + float(e.get("time_rate", 0.0))) + float(e.get("time_offset", 0.0))
+    return ct - smooth
+
+
 def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float]]:
     """Library-parameter values implied by a twin case's effects (scoring only)."""
     e = truth.get("effects", {})
@@ -324,6 +343,10 @@ def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float
         out["time_offset"] = [float(e["time_offset"])]
     if "time_rate" in e:
         out["time_rate"] = [float(e["time_rate"])]
+    if "time_jitter" in e:
+        # the std of the true per-frame time errors over all frames (score_case compares the
+        # estimate with the std over the frames it summarises)
+        out["time_jitter"] = [float(np.std(_true_time_errors(truth, scene)))]
     if "motion_blur" in e:
         out["motion_blur"] = [float((float(e["motion_blur"].get("exposure", 0.5)) / scene.fps) ** 2)]
     return out
@@ -360,8 +383,21 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
         if joint is not None and joint.get("named_jointly") and lbl in joint.get("params", {}):
             r = joint
         if lbl in truths and lbl in r["params"]:
-            est = list(map(float, r["params"][lbl]["value"]))
+            pe = r["params"][lbl]
+            est = [float(pe["std_s"])] if lbl == "time_jitter" else list(map(float, pe["value"]))
             tv = truths[lbl]
+            if lbl == "time_jitter":
+                # the same statistic of the truth: the std of the true time errors over the frames
+                # the estimate summarises (training frames whose time was fitted), and the per-frame
+                # recovery of every fitted frame
+                true_err = _true_time_errors(truth, scene)[np.asarray(diag.frames)]
+                fitted = np.asarray(pe.get("frames_fitted", np.arange(diag.frames.size)), int)
+                on = np.intersect1d(fitted, np.asarray(diag.train, int))
+                tv = [float(np.std(true_err[on]))] if on.size else tv
+                vals = np.asarray(pe["values_s"], float)
+                out.setdefault("jitter_per_frame", {}).update({
+                    "rms_error_s": float(np.sqrt(np.mean((vals[fitted] - true_err[fitted]) ** 2))) if fitted.size else None,
+                    "true_std_all_frames_s": truths[lbl][0], "frames_fitted": fitted.tolist()})
             if len(est) == len(tv):
                 rel = float(np.linalg.norm(np.subtract(est, tv)) / max(np.linalg.norm(tv), 1e-12))
                 rec[lbl] = {"estimate": est, "truth": tv, "rel_error": rel}
