@@ -61,3 +61,27 @@ def test_cloth_suite_unknown_case_setting_and_label(tmp_path):
                           "+gap.cloth.cases.bad={label: warp_drive, seed: 1}", "gap.cloth.only=[bad]", cwd=tmp_path))
     assert "warp_drive" in line
     assert not (tmp_path / "c").exists()
+
+
+def test_diagnose_cloth_missing_footage_fit_and_bad_names(tmp_path):
+    line = _one_line(_run("vidsim.cli.diagnose_cloth", f"paths.out={tmp_path}/d", f"paths.footage={tmp_path}/nope",
+                          f"gap.paths.fit={tmp_path}/params.yaml", cwd=tmp_path))
+    assert "nope" in line and "missing" in line
+    fo = tmp_path / "fo"
+    fo.mkdir()
+    line = _one_line(_run("vidsim.cli.diagnose_cloth", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.fit={tmp_path}/params.yaml", cwd=tmp_path))
+    assert "params.yaml" in line and "missing" in line
+    (tmp_path / "params.yaml").write_text("chosen: exp1\n")
+    line = _one_line(_run("vidsim.cli.diagnose_cloth", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.fit={tmp_path}/params.yaml", cwd=tmp_path))
+    assert "params.yaml" in line and "'params'" in line
+    (tmp_path / "params.yaml").write_text("params: {stretch: 300.0}\nestimated: [stretch, stiffnes]\n")
+    line = _one_line(_run("vidsim.cli.diagnose_cloth", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.fit={tmp_path}/params.yaml", cwd=tmp_path))
+    assert "stiffnes" in line
+    (tmp_path / "params.yaml").write_text("params: {stretch: 300.0}\n")
+    line = _one_line(_run("vidsim.cli.diagnose_cloth", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.fit={tmp_path}/params.yaml", "+gap.cloth.diagnose.topk=1", cwd=tmp_path))
+    assert "topk" in line and "top_k" in line
+    assert not (tmp_path / "d").exists()

@@ -10,18 +10,14 @@ screen, where: per phase / part / region), ``diagnosis.png`` and ``diagnosis.rrd
 
 from __future__ import annotations
 
-import shutil
-import sys
 from pathlib import Path
 
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
+from vidsim.cli.gap_common import diagnose_config, write_diagnosis
 from vidsim.errors import VidsimError
 from vidsim.gap.rigid_model import GapError
-from vidsim.io.atomic import write_json
-from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 
 
@@ -52,26 +48,13 @@ def run(cfg: DictConfig) -> None:
     if missing:
         raise DiagnoseError(f"{cfg.gap.paths.fit}: missing field(s) {missing} (expected the fit_rigid stage's fit.yaml)")
     dcfg = diagnose_config(cfg.gap.diagnose)
-    out = Path(cfg.paths.out)
-    tmp = out.with_name(f".{out.name}.part")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
     prog = Progress(4 + dcfg.top_k + int(dcfg.pairs), "diagnose steps", enabled=cfg.log.progress)
     try:
         d = diagnose_rigid(masks, times, cam, body, fit, dcfg, progress=lambda s: prog.update(note=s))
     except GapError as e:
         raise DiagnoseError(f"{cfg.gap.paths.fit}: {e}") from e
-    res = d.to_dict()
-    res["inputs"] = {"footage": str(fo), "masks": str(cfg.gap.paths.masks), "fit": str(cfg.gap.paths.fit)}
-    write_json(tmp / "diagnosis.json", res)
-    plot_diagnosis(d, tmp / "diagnosis.png", title=fo.name)
-    with make_logger(tmp / "diagnosis.rrd", "vidsim.diagnose", cfg.log.rerun) as lg:
-        log_diagnosis(lg, d, masks)
-    print(f"diagnose {fo.name}: {d.verdict} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
-          f"floor {d.floor_test.mean():.1f} px, {d.seconds:.0f} s)", file=sys.stderr)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    inputs = {"footage": str(fo), "masks": str(cfg.gap.paths.masks), "fit": str(cfg.gap.paths.fit)}
+    write_diagnosis(d, Path(cfg.paths.out), inputs, masks, "diagnose", fo.name, cfg.log.rerun)
 
 
 main = stage_app("diagnose", run)

@@ -1,7 +1,9 @@
-"""Shared pieces of the gap stages: figures and Rerun logging of a rigid diagnosis."""
+"""Shared pieces of the gap stages: figures, Rerun logging and atomic outputs of a diagnosis (rigid or cloth)."""
 
 from __future__ import annotations
 
+import shutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -10,9 +12,37 @@ import numpy as np
 from vidsim.gap.rigid_diagnose import RigidDiagnosis
 from vidsim.report.figures import save_figure
 
+FLOOR_LABEL = "noise floor (free pose per frame)"
 
-def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "") -> None:
-    """Three panels: gap per frame (held-out marked, floor, after the named effect), screen, heatmap."""
+
+def write_diagnosis(d: Any, out: Path, inputs: dict, masks: np.ndarray, stage: str, title: str, rerun: bool,
+                    floor_label: str = FLOOR_LABEL) -> None:
+    """``diagnosis.json`` (with ``inputs``), ``diagnosis.png`` and ``diagnosis.rrd`` of a rigid or
+    cloth diagnosis, written into a temporary folder renamed to ``out`` at the end (all or nothing);
+    a one-line verdict on stderr."""
+    from vidsim.io.atomic import write_json
+    from vidsim.log import make_logger
+
+    out = Path(out)
+    tmp = out.with_name(f".{out.name}.part")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    res = d.to_dict()
+    res["inputs"] = inputs
+    write_json(tmp / "diagnosis.json", res)
+    plot_diagnosis(d, tmp / "diagnosis.png", title=title, floor_label=floor_label)
+    with make_logger(tmp / "diagnosis.rrd", f"vidsim.{stage}", rerun) as lg:
+        log_diagnosis(lg, d, masks)
+    print(f"{stage} {title}: {d.verdict} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
+          f"floor {d.floor_test.mean():.1f} px, {d.seconds:.0f} s)", file=sys.stderr)
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+
+
+def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: str = FLOOR_LABEL) -> None:
+    """Three panels: gap per frame (held-out marked, floor, after the named effect), screen, heatmap.
+    ``d`` is a rigid or a cloth diagnosis (same fields); ``floor_label`` says how its floor was measured."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -22,7 +52,7 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "") -> None:
     fr = d.frames
     ax[0].plot(fr, d.gap_per_frame, "k.-", label="base model (refit on training frames)")
     ax[0].plot(fr[d.test], d.gap_per_frame[d.test], "ko", mfc="none", ms=8, label="held-out frames")
-    ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label="noise floor (free pose per frame)")
+    ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label=floor_label)
     for i in range(min(len(d.named), 2)):
         name = "+".join(d.named[: i + 1])
         g = np.asarray(d.refits[name]["gap_per_frame_after_px"])

@@ -2,11 +2,13 @@
 # it shrinks. What runs: `gap:` in the Snakemake config -- suite_cases (names of entries of
 # conf/gap/default.yaml `cases`; empty list = all), diagnose_cases (rigid cases of `rigid.cases`
 # whose fit is diagnosed), ball (the real toss, both timings), cloth_suite_cases (the cloth cases,
-# below). How: Hydra (`gap.*`; per-rule `overrides: {gap_suite: ..., diagnose_rigid: ..., gap_ball: ...,
-# gap_cloth_suite: ...}`).
+# below), cloth_diagnose (cloth fabrics whose selection is diagnosed) and cloth_diagnose_trial. How:
+# Hydra (`gap.*`; per-rule `overrides: {gap_suite: ..., diagnose_rigid: ..., gap_ball: ...,
+# gap_cloth_suite: ..., diagnose_cloth: ...}`).
 # Layout: {RESULTS}/gap/suite/{suite.json,confusion.*,shrinkage.csv,suite.rrd,cases/},
 # {RESULTS}/gap/rigid_{case}/{diagnosis.json,diagnosis.png,diagnosis.rrd}, {RESULTS}/gap/ball/,
-# {RESULTS}/gap/cloth_suite/{suite.json,confusion.*,shrinkage.csv,cases/}.
+# {RESULTS}/gap/cloth_suite/{suite.json,confusion.*,shrinkage.csv,cases/},
+# {RESULTS}/gap/cloth_{fabric}_{trial}/{diagnosis.json,diagnosis.png,diagnosis.rrd} (cloth_diagnose).
 GAP = config.get("gap", {}) or {}
 GAP_SUITE_ONLY = ",".join(str(c) for c in (GAP.get("suite_cases", []) or []))
 GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
@@ -14,6 +16,10 @@ GAP_DIAGNOSE = list(GAP.get("diagnose_cases", []) or [])
 # `cloth.cases`; a list = those (docs/gap.md, cloth: measured, nothing named yet)
 GAP_CLOTH = GAP.get("cloth_suite_cases")
 GAP_CLOTH_ONLY = ",".join(str(c) for c in (GAP_CLOTH or []))
+# cloth_diagnose: fabrics of the cloth study whose selected parameters are diagnosed blind on the
+# footage of trial cloth_diagnose_trial (default: the held-out motion); needs the cloth family on
+GAP_CLOTH_DIAG = list(GAP.get("cloth_diagnose", []) or [])
+GAP_CLOTH_DIAG_TRIAL = GAP.get("cloth_diagnose_trial", CLOTH_HELD_OUT)
 
 
 if stage_enabled("gap"):
@@ -23,6 +29,8 @@ if stage_enabled("gap"):
         TARGETS["gap"] += [f"{RESULTS}/gap/ball/ball_gap.json"]
     if GAP_CLOTH is not None:
         TARGETS["gap"] += [f"{RESULTS}/gap/cloth_suite/suite.json"]
+    if stage_enabled("cloth"):
+        TARGETS["gap"] += [f"{RESULTS}/gap/cloth_{f}_{GAP_CLOTH_DIAG_TRIAL}/diagnosis.json" for f in GAP_CLOTH_DIAG]
 
 
 rule gap_suite:
@@ -106,6 +114,42 @@ rule diagnose_rigid:
     shell:
         "python -m vidsim.cli.diagnose paths.footage=$(dirname {input.meta}) gap.paths.masks={input.masks} "
         "gap.paths.fit={input.fit} paths.out={params.out} {params.extra} > {log} 2>&1"
+
+
+rule diagnose_cloth:
+    """Blind diagnosis of a fabric's selected parameters on one of its trials (default the held-out motion)."""
+    input:
+        meta=f"{RESULTS}/footage/cloth_{{fabric}}_{{trial}}/meta.yaml",
+        params=f"{RESULTS}/cloth/select/{{fabric}}/params.yaml",
+    output:
+        diagnosis=f"{RESULTS}/gap/cloth_{{fabric}}_{{trial}}/diagnosis.json",
+        plot=report(
+            f"{RESULTS}/gap/cloth_{{fabric}}_{{trial}}/diagnosis.png",
+            caption="../report/gap_diagnosis.rst",
+            category="Sim-to-real gap",
+            subcategory="cloth {fabric}",
+        ),
+        rrd=f"{RESULTS}/gap/cloth_{{fabric}}_{{trial}}/diagnosis.rrd",
+    wildcard_constraints:
+        fabric="[A-Za-z0-9]+",
+        trial="[A-Za-z0-9]+",
+    params:
+        out=get_out_dir,
+        extra=stage_overrides("diagnose_cloth"),
+        cloth=CLOTH_HYDRA,
+        fabric=cloth_fabric_overrides,
+    benchmark:
+        f"{RESULTS}/benchmarks/diagnose_cloth_{{fabric}}_{{trial}}.tsv"
+    log:
+        f"{RESULTS}/logs/gap_cloth_{{fabric}}_{{trial}}_diagnose.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1200,  # the same diagnosis as a cloth suite case (suite peak RSS 654 MB)
+        runtime=20,
+    shell:
+        "python -m vidsim.cli.diagnose_cloth paths.footage=$(dirname {input.meta}) gap.paths.fit={input.params} "
+        "paths.out={params.out} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule gap_ball:
