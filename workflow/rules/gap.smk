@@ -125,7 +125,7 @@ rule diagnose_cloth:
         diagnosis=f"{RESULTS}/gap/cloth_{{fabric}}_{{trial}}/diagnosis.json",
         plot=report(
             f"{RESULTS}/gap/cloth_{{fabric}}_{{trial}}/diagnosis.png",
-            caption="../report/gap_diagnosis.rst",
+            caption="../report/gap_diagnosis_cloth.rst",
             category="Sim-to-real gap",
             subcategory="cloth {fabric}",
         ),
