@@ -85,3 +85,21 @@ def test_diagnose_cloth_missing_footage_fit_and_bad_names(tmp_path):
                           f"gap.paths.fit={tmp_path}/params.yaml", "+gap.cloth.diagnose.topk=1", cwd=tmp_path))
     assert "topk" in line and "top_k" in line
     assert not (tmp_path / "d").exists()
+
+
+def test_diagnose_cloth_reads_the_estimated_names(tmp_path):
+    """The fit file's own list wins; else cloth.fit.estimate; an empty one means the whole space."""
+    from omegaconf import OmegaConf
+
+    from vidsim.cli.diagnose_cloth import read_fit
+    from vidsim.config.cloth import ClothConfig
+
+    cfg = OmegaConf.create({"cloth": OmegaConf.structured(ClothConfig())})
+    f = tmp_path / "fit.yaml"
+    f.write_text("params: {stretch: 300.0, bend: 3.0e-6}\nestimated: [stretch]\n")
+    p, est = read_fit(str(f), cfg)
+    assert est == ["stretch"] and p.stretch == 300.0 and p.bend == 3.0e-6
+    f.write_text("params: {stretch: 300.0}\n")
+    assert read_fit(str(f), cfg)[1] == list(cfg.cloth.fit.space) and len(list(cfg.cloth.fit.space)) == 9
+    cfg.cloth.fit.estimate = ["bend", "shear"]
+    assert read_fit(str(f), cfg)[1] == ["bend", "shear"]

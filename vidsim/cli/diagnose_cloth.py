@@ -9,7 +9,8 @@ swatch footage folder (frames, times, calibration, meta: the measured corner pat
 density; never the truth file beside it), extracts the silhouettes and angle maps from the footage
 itself (as ``fit_cloth`` does), and takes the fitted parameters from ``gap.paths.fit``: a
 ``select_cloth`` ``params.yaml`` or a ``fit_cloth`` ``fit.yaml``. The estimated names are the fit
-file's ``estimated`` when it lists them, else ``cloth.fit.estimate``. The diagnosis refits those on
+file's ``estimated`` when it lists them, else ``cloth.fit.estimate`` (empty: every parameter of
+``cloth.fit.space``, as ``fit_cloth`` reads it). The diagnosis refits those on
 the training frames, films a twin of the fit for the noise floor, screens the cloth library
 (``gap.cloth.diagnose.*``: :class:`vidsim.gap.cloth_diagnose.ClothDiagnoseConfig`), refits the best
 candidates and judges them on held-out frames. Writes ``diagnosis.json`` (verdict, named effects,
@@ -48,7 +49,8 @@ def read_fit(path: str, cfg: DictConfig):
     if not isinstance(doc, dict) or not isinstance(doc.get("params"), dict):
         raise ClothStageError(f"{p}: field 'params' is missing (expected select_cloth's params.yaml or fit_cloth's fit.yaml)")
     params = params_from_dict(doc["params"], str(p))
-    est = doc.get("estimated") or list(cfg.cloth.fit.estimate)
+    # the fit file's own list; else the config's, where empty means the whole space (as in fit_cloth)
+    est = doc.get("estimated") or list(cfg.cloth.fit.estimate) or list(cfg.cloth.fit.space)
     bad = [n for n in est if n not in ESTIMATED_NAMES]
     if bad:
         raise ClothStageError(f"{p}: estimated name(s) {bad} are not cloth parameters; known: {list(ESTIMATED_NAMES)}")
