@@ -176,13 +176,13 @@ def bench_force() -> None:
 
             def tri():
                 for _ in range(reps):
-                    triangle_forces(x, v, mesh.triangles, mesh.tri_coef, mesh.tri_area, p.stretch, p.shear,
+                    triangle_forces(x, v, mesh.triangles, mesh.tri_coef, mesh.tri_area, p.stretch, p.stretch, p.shear,
                                     p.stretch_damping, p.shear_damping, p.drag_linear, p.drag_quad,
                                     p.drag_degrade, w, tn, f)
 
             def tri_nodrag():
                 for _ in range(reps):
-                    triangle_forces(x, v, mesh.triangles, mesh.tri_coef, mesh.tri_area, p.stretch, p.shear,
+                    triangle_forces(x, v, mesh.triangles, mesh.tri_coef, mesh.tri_area, p.stretch, p.stretch, p.shear,
                                     p.stretch_damping, p.shear_damping, 0.0, 0.0, 0.0, w, tn, f)
 
             def bend():

@@ -90,6 +90,7 @@ def stretch_shear_forces(
     coef: np.ndarray,
     area: np.ndarray,
     k_stretch: float,
+    k_stretch_v: float,
     k_shear: float,
     kd_stretch: float,
     kd_shear: float,
@@ -101,7 +102,9 @@ def stretch_shear_forces(
         x: (N, 3) positions [m]. v: (N, 3) velocities [m/s].
         tris: (M, 3) int. coef: (M, 6) dw_u/dx_{ijk}, dw_v/dx_{ijk} [1/m].
         area: (M,) rest areas [m^2].
-        k_stretch, k_shear: [N/m]. kd_stretch, kd_shear: [N s/m].
+        k_stretch: stretch stiffness along the warp (u) [N/m]; k_stretch_v: along the weft (v)
+            (equal for an isotropic fabric, see ``ClothParams.stretch_anisotropy``).
+        k_shear: [N/m]. kd_stretch, kd_shear: [N s/m].
         f: (N, 3) force accumulator [N], modified in place.
 
     Returns:
@@ -142,9 +145,12 @@ def stretch_shear_forces(
         cv = lv - 1.0
         cud = (wu0 * du0 + wu1 * du1 + wu2 * du2) * iu
         cvd = (wv0 * dv0 + wv1 * dv1 + wv2 * dv2) * iv
-        e_st += 0.5 * k_stretch * A * (cu * cu + cv * cv)
+        if k_stretch_v == k_stretch:
+            e_st += 0.5 * k_stretch * A * (cu * cu + cv * cv)
+        else:
+            e_st += 0.5 * A * (k_stretch * cu * cu + k_stretch_v * cv * cv)
         su = A * (k_stretch * cu + kd_stretch * cud) * iu  # times w_u (not unit) below
-        sv = A * (k_stretch * cv + kd_stretch * cvd) * iv
+        sv = A * (k_stretch_v * cv + kd_stretch * cvd) * iv
         csh = wu0 * wv0 + wu1 * wv1 + wu2 * wv2
         cshd = du0 * wv0 + du1 * wv1 + du2 * wv2 + wu0 * dv0 + wu1 * dv1 + wu2 * dv2
         e_sh += 0.5 * k_shear * A * csh * csh
@@ -400,6 +406,7 @@ def triangle_forces(
     coef: np.ndarray,
     area: np.ndarray,
     k_stretch: float,
+    k_stretch_v: float,
     k_shear: float,
     kd_stretch: float,
     kd_shear: float,
@@ -414,7 +421,7 @@ def triangle_forces(
     area-weighted normals (M, 3) into ``tnorm`` for :func:`bend_forces_fused`.
 
     Same forces as :func:`stretch_shear_forces` plus :func:`drag_forces` (one pass over
-    memory instead of two). Units as there.
+    memory instead of two). Units as there (``k_stretch`` warp, ``k_stretch_v`` weft).
     """
     third = 1.0 / 3.0
     sixth = 1.0 / 6.0
@@ -470,7 +477,7 @@ def triangle_forces(
             cud = (wu0 * du0 + wu1 * du1 + wu2 * du2) * iu
             cvd = (wv0 * dv0 + wv1 * dv1 + wv2 * dv2) * iv
             su = A * (k_stretch * cu + kd_stretch * cud) * iu
-            sv = A * (k_stretch * cv + kd_stretch * cvd) * iv
+            sv = A * (k_stretch_v * cv + kd_stretch * cvd) * iv
             csh = wu0 * wv0 + wu1 * wv1 + wu2 * wv2
             cshd = du0 * wv0 + du1 * wv1 + du2 * wv2 + wu0 * dv0 + wu1 * dv1 + wu2 * dv2
             ss = A * (k_shear * csh + kd_shear * cshd)

@@ -42,7 +42,7 @@ STATUS_TEXT = {
 # change to a kernel in forces.py or collision.py is not seen by the cached _accel and the
 # loops that inline it. Bump KERNEL_VERSION with every such change (or delete __pycache__).
 # test_fused_kernels_equal_the_separate_forces catches a stale cache.
-KERNEL_VERSION = "2026-12-02 settle bath (viscous damping before frame 0)"
+KERNEL_VERSION = "2026-12-03 warp/weft stretch stiffnesses (stretch_anisotropy)"
 
 # parameter vector layout
 P_BEND, P_STRETCH, P_SHEAR, P_KDB, P_KDS, P_KDSH, P_KT, P_KN, P_KF = range(9)
@@ -50,7 +50,9 @@ P_COLK, P_COLH, P_SELFK, P_SELFH, P_SELFON, P_CELL, P_MARGIN, P_BENDQ = range(9,
 # settle bath: a uniform viscous damping rate [1/s] on every free vertex while t < P_BATH_END
 # (a rest-state preparation before frame 0, not a physical force of the filmed motion)
 P_BATH, P_BATH_END = range(17, 19)
-N_P = 19
+# weft (v) stretch stiffness [N/m]; P_STRETCH is the warp (u) one (equal unless stretch_anisotropy != 0)
+P_STRETCH_V = 19
+N_P = 20
 
 
 @njit(cache=True)
@@ -141,7 +143,7 @@ def _accel(
                 x[i, c] = dwork[0, d, c]
                 v[i, c] = dwork[1, d, c]
     gravity_init(mass, g, f)
-    triangle_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_SHEAR], P[P_KDS], P[P_KDSH],
+    triangle_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_STRETCH_V], P[P_SHEAR], P[P_KDS], P[P_KDSH],
                     P[P_KT], P[P_KN], P[P_KF], wind, tnorm, f)
     if P[P_BENDQ] > 0:
         bend_forces_quadratic(x, v, edges, bquad, P[P_BEND], P[P_KDB], f)

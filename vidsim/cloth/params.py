@@ -23,6 +23,12 @@ drag_quad (kN)     kg/m^3      normal drag per area: a*kN*|vN|^2/(1+kf|vN|^2)
 drag_degrade (kf)  s^2/m^2     drag degradation; normal drag saturates at a*kN/kf
 =================  ==========  =============================================================
 
+Not estimated by the study (known or 0): ``stretch_anisotropy`` (-), the natural log of the
+warp-to-weft stretch stiffness ratio; the warp (u) stiffness is ``stretch * exp(a/2)`` and the weft
+(v) one ``stretch * exp(-a/2)`` (their geometric mean stays ``stretch``; 0 = isotropic, bit for bit
+the isotropic model). The sim-to-real gap's cloth library frees it as the candidate
+``anisotropic_stretch``.
+
 Relation to the seed's Table 1. The seed reports per-mesh numbers of an unstated
 normalisation (e.g. stretch 50-4000, bend 1e-6-1e-3, damping 0.6-10, drag 0.3-9).
 Its stretch and shear magnitudes happen to be plausible as SI membrane stiffnesses in
@@ -88,6 +94,7 @@ PARAM_UNITS: dict[str, str] = {
     "collision_thickness": "m",
     "self_collision_stiffness": "N/m^3",
     "self_collision_thickness": "m",
+    "stretch_anisotropy": "-",
 }
 
 #: Plausible (low, high) range of each estimated parameter, SI units. Sampling is
@@ -128,6 +135,8 @@ class ClothParams:
         self_collision_stiffness: same for cloth-cloth repulsion [N/m^3].
         self_collision_thickness: cloth-cloth repulsion distance [m]; must be smaller
             than about 0.7 rest edge lengths (checked by :func:`vidsim.cloth.simulate`).
+        stretch_anisotropy: ln(warp / weft stretch stiffness) [-], any finite value (0:
+            isotropic); see :attr:`stretch_warp` and :attr:`stretch_weft`.
 
     Raises:
         ClothParamError: at construction when a value is NaN/inf, negative, or the
@@ -149,12 +158,14 @@ class ClothParams:
     collision_thickness: float = 3e-3
     self_collision_stiffness: float = 3e5
     self_collision_thickness: float = 3e-3
+    stretch_anisotropy: float = 0.0
 
     _POSITIVE: ClassVar[tuple[str, ...]] = (
         "density",
         "collision_thickness",
         "self_collision_thickness",
     )
+    _SIGNED: ClassVar[tuple[str, ...]] = ("stretch_anisotropy",)
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -181,7 +192,7 @@ class ClothParams:
                 raise ClothParamError(
                     f"{name} must be finite [{PARAM_UNITS[name]}], got {val!r}"
                 )
-            if fval < 0.0:
+            if fval < 0.0 and name not in self._SIGNED:
                 raise ClothParamError(
                     f"{name} must be >= 0 [{PARAM_UNITS[name]}], got {fval!r}"
                 )
@@ -190,6 +201,16 @@ class ClothParams:
                     f"{name} must be > 0 [{PARAM_UNITS[name]}], got {fval!r}"
                 )
             object.__setattr__(self, name, fval)
+
+    @property
+    def stretch_warp(self) -> float:
+        """Stretch stiffness along the warp (u) [N/m]: ``stretch * exp(stretch_anisotropy / 2)``."""
+        return self.stretch if self.stretch_anisotropy == 0.0 else self.stretch * math.exp(0.5 * self.stretch_anisotropy)
+
+    @property
+    def stretch_weft(self) -> float:
+        """Stretch stiffness along the weft (v) [N/m]: ``stretch * exp(-stretch_anisotropy / 2)``."""
+        return self.stretch if self.stretch_anisotropy == 0.0 else self.stretch * math.exp(-0.5 * self.stretch_anisotropy)
 
     def estimated_vector(self) -> np.ndarray:
         """The nine estimated parameters in Table 1 order, shape (9,)."""

@@ -55,6 +55,7 @@ from vidsim.cloth.integrate import (
     P_SELFON,
     P_SHEAR,
     P_STRETCH,
+    P_STRETCH_V,
     STATUS_TEXT,
     _accel,
     _rk45_loop,
@@ -253,7 +254,8 @@ def _param_vector(mesh: ClothMesh, params: ClothParams, self_collision: bool, be
     P = np.zeros(N_P)
     P[P_BENDQ] = 1.0 if _bending(mesh, bending) else 0.0
     P[P_BEND] = params.bend
-    P[P_STRETCH] = params.stretch
+    P[P_STRETCH] = params.stretch_warp
+    P[P_STRETCH_V] = params.stretch_weft
     P[P_SHEAR] = params.shear
     P[P_KDB] = params.bend_damping
     P[P_KDS] = params.stretch_damping
@@ -369,7 +371,7 @@ def energies(
     f = np.zeros_like(x)
     z = np.zeros_like(v)
     est, esh = stretch_shear_forces(x, z, mesh.triangles, mesh.tri_coef, mesh.tri_area,
-                                    params.stretch, params.shear, 0.0, 0.0, f)
+                                    params.stretch_warp, params.stretch_weft, params.shear, 0.0, 0.0, f)
     if quad:
         eb = bend_forces_quadratic(x, z, mesh.bend_edges, mesh.bend_quad, params.bend, 0.0, f)
     else:
@@ -431,7 +433,8 @@ def stable_step(
 
     def kforce(xx: np.ndarray) -> np.ndarray:
         f = np.zeros((N, 3))
-        stretch_shear_forces(xx, z, mesh.triangles, mesh.tri_coef, mesh.tri_area, params.stretch, params.shear, 0.0, 0.0, f)
+        stretch_shear_forces(xx, z, mesh.triangles, mesh.tri_coef, mesh.tri_area, params.stretch_warp, params.stretch_weft,
+                             params.shear, 0.0, 0.0, f)
         if quad:
             bend_forces_quadratic(xx, z, mesh.bend_edges, mesh.bend_quad, params.bend, 0.0, f)
         else:
@@ -440,7 +443,7 @@ def stable_step(
 
     def dforce(vv: np.ndarray) -> np.ndarray:
         f = np.zeros((N, 3))
-        stretch_shear_forces(x, vv, mesh.triangles, mesh.tri_coef, mesh.tri_area, 0.0, 0.0,
+        stretch_shear_forces(x, vv, mesh.triangles, mesh.tri_coef, mesh.tri_area, 0.0, 0.0, 0.0,
                              params.stretch_damping, params.shear_damping, f)
         if quad:  # the unprojected damping: an upper bound of the projected one's rate
             bend_forces_quadratic(x, vv, mesh.bend_edges, mesh.bend_quad, 0.0, params.bend_damping, f, False)

@@ -43,19 +43,20 @@ def _check(force, grad, scale):
     assert err < 1e-5 * np.max(np.abs(grad)), err
 
 
-@pytest.mark.parametrize("which", ["stretch", "shear"])
+@pytest.mark.parametrize("which", ["stretch", "shear", "anisotropic stretch"])
 def test_stretch_shear_force_is_minus_energy_gradient(bent, which):
     m, x, _ = bent
     z = np.zeros_like(x)
-    ks, ksh = (300.0, 0.0) if which == "stretch" else (0.0, 40.0)
+    ks, ksv, ksh = {"stretch": (300.0, 300.0, 0.0), "shear": (0.0, 0.0, 40.0),
+                    "anisotropic stretch": (300.0, 45.0, 0.0)}[which]
 
     def energy(xx):
         f = np.zeros_like(xx)
-        a, b = stretch_shear_forces(xx, z, m.triangles, m.tri_coef, m.tri_area, ks, ksh, 0.0, 0.0, f)
+        a, b = stretch_shear_forces(xx, z, m.triangles, m.tri_coef, m.tri_area, ks, ksv, ksh, 0.0, 0.0, f)
         return a + b
 
     f = np.zeros_like(x)
-    stretch_shear_forces(x, z, m.triangles, m.tri_coef, m.tri_area, ks, ksh, 0.0, 0.0, f)
+    stretch_shear_forces(x, z, m.triangles, m.tri_coef, m.tri_area, ks, ksv, ksh, 0.0, 0.0, f)
     _check(f, _fd_grad(energy, x), 1.0)
 
 
@@ -134,7 +135,7 @@ def test_damping_forces_are_minus_rayleigh_gradient(bent):
 
     def dforce(vv):
         f = np.zeros_like(x)
-        stretch_shear_forces(x, vv, m.triangles, m.tri_coef, m.tri_area, 0.0, 0.0, 0.02, 0.03, f)
+        stretch_shear_forces(x, vv, m.triangles, m.tri_coef, m.tri_area, 0.0, 0.0, 0.0, 0.02, 0.03, f)
         bend_forces(x, vv, m.bend_edges, m.bend_coef, m.bend_rest, 0.0, 1e-7, f)
         return f
 
@@ -225,7 +226,7 @@ def test_fused_kernels_equal_the_separate_forces(bent):
                     shear_damping=0.03, drag_linear=0.7, drag_quad=1.3, drag_degrade=0.4)
     wind = np.array([0.3, -0.2, 0.1])
     f = np.zeros_like(x)
-    stretch_shear_forces(x, v, m.triangles, m.tri_coef, m.tri_area, 300.0, 40.0, 0.02, 0.03, f)
+    stretch_shear_forces(x, v, m.triangles, m.tri_coef, m.tri_area, 300.0, 300.0, 40.0, 0.02, 0.03, f)
     bend_forces(x, v, m.bend_edges, m.bend_coef, m.bend_rest, 2e-5, 1e-7, f)
     drag_forces(x, v, m.triangles, 0.7, 1.3, 0.4, wind, f)
     gravity_forces(x, m.masses(p.density), np.asarray(p.gravity), f)
@@ -240,3 +241,20 @@ def test_fused_kernels_equal_the_separate_forces(bent):
     # "auto" is the quadratic model on this flat-rest swatch; the default is dihedral
     assert np.array_equal(compute_forces(m, p, x, v, wind=wind, bending="auto"), fused_q)
     assert np.array_equal(compute_forces(m, p, x, v, wind=wind), fused)
+
+
+def test_anisotropic_fused_kernel_equals_the_separate_forces(bent):
+    """The fused kernel takes the warp and weft stretch stiffnesses of ``stretch_anisotropy``."""
+    from vidsim.cloth import ClothParams, compute_forces
+
+    m, x, v = bent
+    p = ClothParams(bend=0.0, stretch=300.0, shear=40.0, bend_damping=0.0, stretch_damping=0.02,
+                    shear_damping=0.03, drag_linear=0.0, drag_quad=0.0, stretch_anisotropy=1.2)
+    assert np.isclose(p.stretch_warp / p.stretch_weft, np.exp(1.2)) and np.isclose(p.stretch_warp * p.stretch_weft, 300.0**2)
+    f = np.zeros_like(x)
+    stretch_shear_forces(x, v, m.triangles, m.tri_coef, m.tri_area, p.stretch_warp, p.stretch_weft, 40.0, 0.02, 0.03, f)
+    gravity_forces(x, m.masses(p.density), np.asarray(p.gravity), f)
+    fused = compute_forces(m, p, x, v)
+    assert np.allclose(fused, f, rtol=1e-9, atol=1e-12 * np.abs(f).max())
+    iso = compute_forces(m, p.replace(stretch_anisotropy=0.0), x, v)
+    assert np.abs(fused - iso).max() > 1e-3 * np.abs(iso).max()  # the anisotropy changes the forces
