@@ -60,6 +60,11 @@ def test_cloth_suite_unknown_case_setting_and_label(tmp_path):
     line = _one_line(_run("vidsim.cli.gap_cloth_suite", f"paths.out={tmp_path}/c",
                           "+gap.cloth.cases.bad={label: warp_drive, seed: 1}", "gap.cloth.only=[bad]", cwd=tmp_path))
     assert "warp_drive" in line
+    # a case's own twin parameters are checked before anything is filmed
+    line = _one_line(_run("vidsim.cli.gap_cloth_suite", f"paths.out={tmp_path}/c",
+                          "+gap.cloth.cases.bad={label: none, seed: 1, twin_params: {stiffness: 3.0}}",
+                          "gap.cloth.only=[null_a,bad]", cwd=tmp_path))
+    assert "gap.cloth.cases.bad" in line and "stiffness" in line
     assert not (tmp_path / "c").exists()
 
 

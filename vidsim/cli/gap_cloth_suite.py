@@ -48,7 +48,7 @@ def settings(cls: type, values: dict, where: str):
 def run(cfg: DictConfig) -> None:
     from vidsim.gap.cloth_diagnose import ClothDiagnoseConfig
     from vidsim.gap.cloth_model import ClothGapError
-    from vidsim.gap.cloth_suite import ClothSceneConfig, case_labels, confusion, run_case
+    from vidsim.gap.cloth_suite import ClothSceneConfig, case_labels, confusion, run_case, validate_case
 
     cc = cfg.gap.cloth
     cases, names = select_cases(cc.cases, cc.only, "gap.cloth", case_labels, ClothGapError)
@@ -58,6 +58,12 @@ def run(cfg: DictConfig) -> None:
     except ClothGapError as e:
         raise ConfigError(str(e)) from e
     scene = settings(ClothSceneConfig, OmegaConf.to_container(cc.scene, resolve=True), "gap.cloth.scene")
+    for n in names:  # every asked-for case checked before the first is filmed
+        try:
+            validate_case(OmegaConf.to_container(cases[n], resolve=True) if isinstance(cases[n], DictConfig)
+                          else dict(cases[n]), scene)
+        except ClothGapError as e:
+            raise ConfigError(f"gap.cloth.cases.{n}: {e}") from e
     out = Path(cfg.paths.out)
     tmp = out.with_name(f".{out.name}.part")
     (tmp / "cases").mkdir(parents=True, exist_ok=True)

@@ -737,7 +737,8 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         n_sims[0] += m.n_sims
         k_cur = len(theta_cur)
         blocks = {c: J[:, m.slices[c]] for c in names}
-        one_sided = {c: CLOTH_EFFECTS[c].lower is not None and c != "air_drag" for c in names}
+        # one-sided: parameters bounded below by zero (a signed, bounded one such as the anisotropy is not)
+        one_sided = {c: CLOTH_EFFECTS[c].lower == 0.0 and c != "air_drag" for c in names}
         if "time_jitter" in blocks:
             # only the frames that can tell their time (as in the refit), jitter and placebo alike
             blocks["time_jitter"] = blocks["time_jitter"][:, timed]

@@ -8,13 +8,16 @@ A case is a plain mapping (a config entry, so a user adds one without code)::
     {label: none, seed: 320, kind: mujoco, fabric: linen, effects: {}}    # MuJoCo reality
 
 ``kind: twin`` (default) is the *twin* reality: the estimator's own simulator on a finer mesh
-(``scene.twin_resolution``) with known parameters (``scene.twin_params``; the ones the fit does
+(``scene.twin_resolution``) with known parameters (``scene.twin_params``, and over them the case's
+own ``twin_params``, e.g. ``{stretch: 25.0}`` for a stretchy knit-like fabric; the ones the fit does
 not estimate equal the model's fixed values, so the null case has only mesh resolution,
 rendering, segmentation and noise between it and the model). Its effects (all off by default)::
 
     wind: [wx, wy, wz]             steady uniform air velocity, m/s
     gravity_tilt: {degrees, azimuth_deg}   the world frame is not level
     damping: f                     bend, stretch and shear damping x f
+    anisotropic_stretch: a         ln(warp / weft stretch stiffness) (``ClothParams.stretch_anisotropy``;
+                                   the geometric mean stays ``twin_params.stretch``)
     drag: {drag_degrade: v, ...}   drag parameters the fit holds fixed, set to v
     grip_slip: {drop, lag, ramp_s} the fabric slides down through both grips by ``drop`` m over
                                    ``ramp_s`` s (smoothstep) and follows the measured path ``lag`` s
@@ -40,6 +43,7 @@ devices, size, density and the sensor noise measured on the empty frames.
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Optional
 
@@ -50,8 +54,8 @@ from vidsim.gap.cloth_diagnose import ClothDiagnoseConfig, ClothDiagnosis, Cloth
 from vidsim.gap import suite as rigid_suite
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, DAMPING_NAMES, DRAG_NAMES, ClothGapError
 
-TWIN_EFFECTS = ("wind", "gravity_tilt", "damping", "drag", "grip_slip", "lens_k1", "motion_blur", "time_offset",
-                "time_rate", "time_jitter", "gust")
+TWIN_EFFECTS = ("wind", "gravity_tilt", "damping", "anisotropic_stretch", "drag", "grip_slip", "lens_k1", "motion_blur",
+                "time_offset", "time_rate", "time_jitter", "gust")
 
 
 @dataclass
@@ -111,7 +115,12 @@ def _check_case(case: dict) -> tuple[str, dict]:
         bad = sorted(set(eff) - set(TWIN_EFFECTS))
         if bad:
             raise ClothGapError(f"cloth case effects: unknown key(s) {bad}; the twin reality knows {list(TWIN_EFFECTS)}")
+        if case.get("twin_params") is not None and not isinstance(case.get("twin_params"), Mapping):
+            raise ClothGapError(f"cloth case twin_params = {case.get('twin_params')!r}: expected a mapping of "
+                                f"ClothParams names to values")
     elif kind == "mujoco":
+        if case.get("twin_params"):
+            raise ClothGapError("cloth case twin_params: only a twin case (kind: twin) has them")
         from vidsim.reality.cloth import resolve_effects
 
         try:
@@ -123,13 +132,32 @@ def _check_case(case: dict) -> tuple[str, dict]:
     return kind, eff
 
 
-def twin_truth_params(scene: ClothSceneConfig, eff: dict) -> ClothParams:
-    """The twin's parameters: ``twin_params`` over the model's fixed mid-range values, then the
-    case's ``damping``, ``drag`` and ``gravity_tilt``."""
-    p = mid_range_params(density=0.2).replace(**{k: float(v) for k, v in scene.twin_params.items()})
+def validate_case(case: dict, scene: ClothSceneConfig) -> None:
+    """Check a case entry before anything is filmed: its kind, effect keys, labels and (twin) the
+    parameters it sets; a :class:`ClothGapError` names what is wrong."""
+    kind, eff = _check_case(case)
+    case_labels(case)
+    if kind == "twin":
+        twin_truth_params(scene, eff, case.get("twin_params"))
+
+
+def twin_truth_params(scene: ClothSceneConfig, eff: dict, case_params: dict | None = None) -> ClothParams:
+    """The twin's parameters: ``scene.twin_params`` and then the case's own ``twin_params``
+    (``case_params``) over the model's fixed mid-range values, then the case's ``damping``,
+    ``anisotropic_stretch``, ``drag`` and ``gravity_tilt``."""
+    over = {**dict(scene.twin_params), **dict(case_params or {})}
+    try:
+        p = mid_range_params(density=0.2).replace(**{k: float(v) for k, v in over.items()})
+    except (ValueError, TypeError) as e:
+        raise ClothGapError(f"cloth case twin_params: {e}") from None
     kw: dict[str, Any] = {}
     if "damping" in eff:
         kw.update({n: getattr(p, n) * float(eff["damping"]) for n in DAMPING_NAMES})
+    if "anisotropic_stretch" in eff:
+        a = eff["anisotropic_stretch"]
+        if not isinstance(a, (int, float)) or not np.isfinite(a):
+            raise ClothGapError(f"cloth case effects: anisotropic_stretch = {a!r}; expected ln(warp/weft), a finite number")
+        kw["stretch_anisotropy"] = float(a)
     for k, v in dict(eff.get("drag") or {}).items():
         if k not in DRAG_NAMES:
             raise ClothGapError(f"cloth case effects.drag: unknown parameter {k!r}; expected {list(DRAG_NAMES)}")
@@ -197,7 +225,7 @@ def make_case(case: dict, scene: ClothSceneConfig | None = None, cloth_cfg=None)
     k1 = 0.0
     film = FilmSettings(n_background=int(scene.n_background))
     if kind == "twin":
-        p = twin_truth_params(scene, eff)
+        p = twin_truth_params(scene, eff, case.get("twin_params"))
         truth["params"] = {k: (list(v) if isinstance(v, tuple) else float(v)) for k, v in p.__dict__.items()}
         tc = nominal * (1.0 + float(eff.get("time_rate", 0.0))) + float(eff.get("time_offset", 0.0))
         if "time_jitter" in eff:
@@ -332,6 +360,8 @@ def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float
         out["gravity_tilt"] = [float(g[0] / -g[2]), float(g[1] / -g[2])]
     if "damping" in e:
         out["damping"] = [float(np.log(float(e["damping"])))] * 3
+    if "anisotropic_stretch" in e:
+        out["anisotropic_stretch"] = [float(e["anisotropic_stretch"])]
     if "drag" in e:
         out["air_drag"] = [float(truth["params"][k]) - float(getattr(fixed, k)) for k in DRAG_NAMES
                            if k not in scene.estimate]

@@ -213,3 +213,20 @@ def test_soft_coverage_area_seams_and_outline_bias():
         assert grow == pytest.approx(b, rel=0.1)
     # the boundary flags: a 12 x 12 grid has 4 x 11 boundary edges
     assert boundary_edges(m.triangles).sum() == 44
+
+
+def test_twin_case_parameters_and_anisotropy_are_checked():
+    """A case's own ``twin_params`` and its ``anisotropic_stretch`` reach the twin; bad ones name themselves."""
+    from vidsim.gap.cloth_suite import ClothSceneConfig, true_strengths, twin_truth_params, validate_case
+
+    scene = ClothSceneConfig()
+    p = twin_truth_params(scene, {"anisotropic_stretch": 1.1}, {"stretch": 25.0})
+    assert p.stretch == 25.0 and p.stretch_anisotropy == 1.1 and p.bend == scene.twin_params["bend"]
+    assert np.isclose(p.stretch_warp / p.stretch_weft, np.exp(1.1))
+    assert true_strengths({"kind": "twin", "effects": {"anisotropic_stretch": 1.1}}, scene) == {"anisotropic_stretch": [1.1]}
+    with pytest.raises(ClothGapError, match="stiffness"):
+        validate_case({"label": "none", "twin_params": {"stiffness": 3.0}}, scene)
+    with pytest.raises(ClothGapError, match="anisotropic_stretch"):
+        validate_case({"label": "anisotropic_stretch", "effects": {"anisotropic_stretch": "big"}}, scene)
+    with pytest.raises(ClothGapError, match="only a twin"):
+        validate_case({"label": "none", "kind": "mujoco", "twin_params": {"stretch": 25.0}}, scene)
