@@ -71,6 +71,9 @@ from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
 BAD_RESIDUAL = 1.0
 IMAGING = ("lens_k1", "motion_blur", "rolling_shutter", "time_offset", "time_rate")
 PARTS = ("gripped_corners", "top_edge", "side_edges", "bottom_edge", "centre")
+RESIDUALS = ("band", "moments")
+MOMENTS = ("sqrt_area", "centroid_x", "centroid_y", "spread_x", "spread_y", "spread_xy")
+BAD_MOMENT_PX = 1000.0  # a moment residual of a run that failed to simulate (any real one is far smaller)
 
 
 @dataclass
@@ -123,6 +126,14 @@ class ClothDiagnoseConfig:
             a refit from zero may not find what a coarse start does (measured: wind case on a
             stiff twin started at the twin's stiffness, closure 0.00 from zero, 0.69 with
             ``[1, 3]``; docs/gap.md).
+        residual: what the diagnosis compares. ``"band"`` (the default): soft-silhouette coverage
+            pixel by pixel in a band around both outlines (every gap figure is mismatched pixels
+            per frame). ``"moments"``: six low-order moments of each frame's soft silhouette
+            (:func:`silhouette_moments`: square root of the area, centroid, spreads along x and
+            y, and the x-y spread), a summary a chaotic fold pattern moves far less than its
+            pixels; gaps are then the Euclidean norm of the six differences, full-resolution
+            pixels per frame, and floor, screen, refits and closures are all in that space. The
+            pixel band still serves "where" (heatmap, parts).
         global_evals, global_width: before the base refit and before each candidate's refit, a
             derivative-free search (:func:`global_search`: a Latin-hypercube design, then
             annealing) of ``global_evals`` evaluations over every parameter within
@@ -158,6 +169,7 @@ class ClothDiagnoseConfig:
     effect_starts: list[float] = field(default_factory=lambda: [1.0, 3.0])
     global_evals: int = 0
     global_width: float = 3.0
+    residual: str = "band"
 
     def validate(self) -> None:
         """Raise :class:`ClothGapError` naming the field when a setting is not usable."""
@@ -183,6 +195,8 @@ class ClothDiagnoseConfig:
         if self.global_evals < 0 or not (np.isfinite(self.global_width) and self.global_width > 0):
             raise ClothGapError(f"gap.cloth.diagnose.global_evals must be >= 0 and global_width > 0, got "
                                 f"{self.global_evals}, {self.global_width}")
+        if self.residual not in RESIDUALS:
+            raise ClothGapError(f"gap.cloth.diagnose.residual must be one of {list(RESIDUALS)}, got {self.residual!r}")
         if self.floor_resolution != 0 and self.floor_resolution < 3:
             raise ClothGapError(f"gap.cloth.diagnose.floor_resolution must be 0 (the model's) or >= 3, got "
                                 f"{self.floor_resolution}")
@@ -261,6 +275,28 @@ class ClothDiagnosis:
 
 
 # ----------------------------------------------------------------------------- residuals
+def silhouette_moments(a: np.ndarray, scale: float) -> np.ndarray:
+    """(F, 6) low-order moments of soft silhouettes ``a`` (F, h, w) at image scale ``scale``, in
+    full-resolution pixels: square root of the area, centroid x and y, the standard deviations of
+    the covered pixels along x and y, and their covariance divided by the sum of those deviations
+    (:data:`MOMENTS`). An empty frame gives zeros (finite: an empty simulated frame is a large
+    residual against any visible footage, not NaN)."""
+    a = np.asarray(a, float)
+    F, h, w = a.shape
+    x = np.arange(w) + 0.5
+    y = np.arange(h) + 0.5
+    A = a.sum(axis=(1, 2))
+    px, py = a.sum(axis=1), a.sum(axis=2)  # (F, w), (F, h)
+    Ai = np.divide(1.0, A, out=np.zeros_like(A), where=A > 1e-9)
+    cx, cy = px @ x * Ai, py @ y * Ai
+    sxx = np.clip(px @ (x * x) * Ai - cx * cx, 0.0, None)
+    syy = np.clip(py @ (y * y) * Ai - cy * cy, 0.0, None)
+    sxy = np.einsum("fhw,h,w->f", a, y, x) * Ai - cx * cy
+    sx, sy = np.sqrt(sxx), np.sqrt(syy)
+    rxy = np.divide(sxy, sx + sy, out=np.zeros_like(sxy), where=(sx + sy) > 1e-9)
+    return np.stack([np.sqrt(A), cx, cy, sx, sy, rxy], axis=1) / float(scale)
+
+
 class Problem(RigidProblem):
     """Soft-silhouette residuals of a :class:`ClothGapModel` on a fixed band, some frames.
 
@@ -273,13 +309,53 @@ class Problem(RigidProblem):
         roi: (F, h, w) bool band; frames: indices (into the compared frames) whose residuals count;
         steps: shared dictionary of finite-difference steps by parameter label (filled on use).
         fd_target_px: image motion of a step, pixels at the model's scale.
+        residual: ``"band"`` (pixels in the band) or ``"moments"`` (six silhouette moments per
+            frame, :func:`silhouette_moments`; see :class:`ClothDiagnoseConfig`).
     """
 
     def __init__(self, model: ClothGapModel, obs: np.ndarray, roi: np.ndarray, frames: np.ndarray,
-                 steps: dict, fd_target_px: float) -> None:
+                 steps: dict, fd_target_px: float, residual: str = "band") -> None:
         super().__init__(model, obs, roi, frames)
         self.steps = steps
         self.fd_target_px = float(fd_target_px)
+        if residual not in RESIDUALS:
+            raise ClothGapError(f"residual must be one of {list(RESIDUALS)}, got {residual!r}")
+        self.moments = residual == "moments"
+        self._obs_moments = silhouette_moments(obs, model.scale) if self.moments else None
+
+    def residual(self, theta: np.ndarray) -> np.ndarray:
+        """Flat residual vector of ``frames``: band pixels, or six moments per frame."""
+        if not self.moments:
+            return super().residual(theta)
+        self.n_evals += 1
+        a, ok = self.model.render(theta, self.frames)
+        if not ok:
+            return np.full(len(self.frames) * len(MOMENTS), BAD_MOMENT_PX)
+        return (silhouette_moments(a, self.model.scale) - self._obs_moments[self.frames]).ravel()
+
+    def gap_per_frame(self, theta: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
+        """(F,) per-frame gap, full-resolution pixels: mismatched band pixels, or the norm of
+        the moment differences."""
+        if not self.moments:
+            return super().gap_per_frame(theta, frames)
+        fr = self.frames if frames is None else np.asarray(frames, int)
+        a, ok = self.model.render(theta, fr)
+        if not ok:
+            return np.full(len(fr), np.inf)
+        return np.linalg.norm(silhouette_moments(a, self.model.scale) - self._obs_moments[fr], axis=1)
+
+    def row_frames(self) -> np.ndarray:
+        """(n_res,) index into ``frames`` of each residual row."""
+        if self.moments:
+            return np.repeat(np.arange(len(self.frames)), len(MOMENTS))
+        return np.nonzero(self.roi[self.frames])[0]
+
+    def frame_rows(self, a: np.ndarray, i: int) -> np.ndarray:
+        """Rows of frame ``frames[i]`` for a coverage image ``a`` (h, w) (a difference of two
+        renders: the observation cancels for moments, lies outside for the band)."""
+        if self.moments:
+            return silhouette_moments(a[None], self.model.scale)[0]
+        return a[self.roi[self.frames[i]]]
 
     def labels(self) -> list[str]:
         m = self.model
@@ -326,7 +402,7 @@ class Problem(RigidProblem):
             tp = theta.copy()
             tp[jit] += hs[jit]
             d = self.residual(tp) - r0
-            row_frame = np.nonzero(self.roi[self.frames])[0]
+            row_frame = self.row_frames()
             for i, k in enumerate(self.frames):
                 sel = row_frame == i
                 cols[sel, jit.start + k] = d[sel] / hs[jit.start + k]
@@ -344,8 +420,8 @@ def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
     sl = m.slices["time_jitter"]
     h = prob.step_vector(theta)[sl][prob.frames]
     P, V, ok = m.simulate(theta)
-    mask = prob.roi[prob.frames]
-    cols = np.zeros((int(mask.sum()), len(prob.frames)))
+    row_frame = prob.row_frames()
+    cols = np.zeros((row_frame.size, len(prob.frames)))
     if not ok:
         return cols
     cam = m._camera(theta)
@@ -353,7 +429,6 @@ def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
     tc = m.capture_times(theta)[prob.frames]
     bias = float(theta[m.n_est])
     H, W = cam.height, cam.width
-    row_frame = np.nonzero(mask)[0]
     for i, t in enumerate(tc):
         uv0 = cam.project(hermite(g, P, V, np.full(P.shape[1], t)))
         uv1 = cam.project(hermite(g, P, V, np.full(P.shape[1], t + 1e-4)))
@@ -361,10 +436,42 @@ def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
         d = h[i] * np.nan_to_num(perp)
         cp = soft_coverage(uv0 + d, m.tris, H, W, m.ramp, bias, m.boundary)
         cm = soft_coverage(uv0 - d, m.tris, H, W, m.ramp, bias, m.boundary)
-        diff = ((cp - cm) / (2 * h[i]))[mask[i]]
+        if prob.moments:  # the moments are not linear in the coverage: difference the moments
+            diff = (prob.frame_rows(cp, i) - prob.frame_rows(cm, i)) / (2 * h[i])
+        else:
+            diff = prob.frame_rows((cp - cm) / (2 * h[i]), i)
         cols[row_frame == i, i] = diff
     prob.n_evals += 2
     return cols
+
+
+def heldout_time_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: np.ndarray) -> np.ndarray:
+    """(len(test),) gap of each held-out frame after fitting its own time error alone, in the
+    problem's residual (the rigid rule, :func:`vidsim.gap.rigid_diagnose._heldout_time_fit`, whose
+    band version this calls; for moments the same search on the frame's six moments)."""
+    if not prob.moments:
+        return _heldout_time_fit(prob.model, theta, prob.obs, prob.roi, test, train)
+    from scipy.optimize import minimize_scalar
+
+    sl = prob.model.slices["time_jitter"]
+    theta = np.asarray(theta, float)
+    bound = max(4.0 * float(np.std(theta[sl][train])), 5e-4)
+    out = np.zeros(len(test))
+    for i, k in enumerate(test):
+        pk = Problem(prob.model, prob.obs, prob.roi, np.array([k]), prob.steps, prob.fd_target_px, "moments")
+
+        def at(dt: float, k=k) -> np.ndarray:
+            th = theta.copy()
+            th[sl.start + k] = dt
+            return th
+
+        def cost(dt: float) -> float:
+            r = pk.residual(at(dt))
+            return float(r @ r)
+
+        sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
+        out[i] = float(pk.gap_per_frame(at(sol.x))[0])
+    return out
 
 
 def effect_start(prob: Problem, theta0: np.ndarray, effect: str, mults: list[float] | tuple[float, ...]
@@ -678,7 +785,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
         return ClothGapModel(setup, params0, estimated, effects, cfg.scale, cfg.ramp, dt)
 
     def problem(m: ClothGapModel, fr: np.ndarray, o: np.ndarray = obs) -> Problem:
-        return Problem(m, o, roi, fr, steps, cfg.fd_target_px)
+        return Problem(m, o, roi, fr, steps, cfg.fd_target_px, cfg.residual)
 
     # 2. base refit on the training frames
     pb = problem(base, train)
@@ -782,7 +889,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             # (frames too slow to tell their time keep the refit's zero, as in the refit)
             test_t = test[timed[test]]
             if test_t.size:
-                g[test_t] = _heldout_time_fit(m, th, obs, roi, test_t, train_timed)
+                g[test_t] = heldout_time_fit(pe, th, test_t, train_timed)
         after, tr_after = float(g[test].mean()), float(g[train].mean())
         res = {"effects": list(effects), "heldout_before_px": before, "heldout_after_px": after,
                "heldout_closure": (before - after) / excess if excess > 0 else 0.0,
