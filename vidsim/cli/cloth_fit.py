@@ -11,7 +11,9 @@ from the footage's calibration. The coarse grid (``cloth.fit.grid_levels`` value
 *joint*: one parameter set minimising the sum of the trials' errors (the seed's "more general
 solution"); ``fit.yaml`` then also lists each trial's error. Every evaluation is appended to
 ``evals.jsonl`` in the output folder (fsync'd): a killed stage, run again, replays those
-evaluations without simulating and continues. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
+evaluations without simulating and continues. The log's first line is the objective's
+fingerprint (:meth:`vidsim.clothfit.objective.ClothObjective.fingerprint`): a rerun whose footage
+or settings changed moves the old log aside (``evals.stale-<k>.jsonl``) instead of replaying it. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
 selection), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
 silhouette and angle maps, per-frame error and the energy curve).
 """
@@ -58,7 +60,7 @@ def candidates(cache_path: Path, space, k: int) -> list[dict]:
             r = json.loads(line)
         except json.JSONDecodeError:
             continue
-        if r["f"] < FAILED_SCORE:
+        if "f" in r and r["f"] < FAILED_SCORE:  # (the context header has no score)
             rows.append((float(r["f"]), np.asarray(r["u"], float)))
     rows.sort(key=lambda x: x[0])
     out: list[tuple[float, np.ndarray]] = []
@@ -96,7 +98,8 @@ def run(cfg: DictConfig) -> None:
     wrapped = _Progressed(obj, prog)
     wrapped.space = space  # fit() reads objective.space
     res = fit(wrapped, grid_params=list(fc.grid_params), levels=int(fc.grid_levels), budget=int(fc.budget),
-              method=str(fc.method), anneal_cfg=acfg, sigma0=float(fc.cma_sigma0), seed=int(fc.seed), cache_path=log)
+              method=str(fc.method), anneal_cfg=acfg, sigma0=float(fc.cma_sigma0), seed=int(fc.seed), cache_path=log,
+              cache_context=obj.fingerprint())
     n_new = obj.n_evals - n_before
     t_fit = time.perf_counter() - t0 - t_feat
     best = obj.params(res.theta, trial.density)

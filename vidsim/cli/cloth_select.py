@@ -118,7 +118,7 @@ def _polish(trials: list, cfg: DictConfig, theta0: np.ndarray, f_sel: float, out
 
     acfg = AnnealConfig(budget=budget, T0=float(sc.polish_t0) * f_sel, cooling=0.8, evals_per_T=10,
                         step=float(sc.polish_step), min_step=min(0.01, float(sc.polish_step)), seed=int(cfg.cloth.fit.seed))
-    with EvalCache(f, out / "polish_evals.jsonl") as fc:
+    with EvalCache(f, out / "polish_evals.jsonl", context=joint.fingerprint()) as fc:
         res = anneal(fc, u0, acfg)
     improved = bool(np.isfinite(res.best_f) and res.best_f < f_sel)
     theta = joint.space.from_unit(res.best_u) if improved else np.asarray(theta0, float)

@@ -36,6 +36,7 @@ from vidsim.cloth import PARAM_UNITS
 from vidsim.config import to_plain
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log.progress import Progress
+from vidsim.optim.cache import fingerprint
 from vidsim.posterior.cloth import ClothPosteriorSettings, FrameEval, cloth_posterior, read_eval_log
 from vidsim.posterior.figures import corner_figure, correlation_figure
 from vidsim.posterior.sampler import SamplerConfig, correlation, summarize
@@ -166,7 +167,8 @@ def run(cfg: DictConfig) -> None:
           f"cached evaluations {[len(c[1]) for c in cached]}", flush=True)
     post = cloth_posterior(evaluate, space.dim, center, cached, s, tmp, cands,
                            progress=lambda m: print(f"posterior_cloth: {m}", flush=True),
-                           on_chunk=lambda i: prog.update(note=f"step {i['step']} tau_max {i['tau_max']:.0f}"))
+                           on_chunk=lambda i: prog.update(note=f"step {i['step']} tau_max {i['tau_max']:.0f}"),
+                           context=fingerprint("posterior_cloth frames", obj.fingerprint()))
     ch = post.chain
     S = post.samples()
     nat = space.from_unit(S)

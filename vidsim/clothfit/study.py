@@ -45,7 +45,7 @@ class FitResult:
 
 def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, budget: int = 600,
         method: str = "anneal", anneal_cfg: AnnealConfig | None = None, sigma0: float = 0.2, seed: int = 0,
-        cache_path: str | os.PathLike | None = None) -> FitResult:
+        cache_path: str | os.PathLike | None = None, cache_context: str | None = None) -> FitResult:
     """Grid + annealing (or CMA-ES) on ``objective``.
 
     Args:
@@ -58,6 +58,8 @@ def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, b
         sigma0: CMA-ES initial step in the unit cube.
         seed: random seed.
         cache_path: JSONL evaluation log (resume); None keeps it in memory.
+        cache_context: the objective's fingerprint (:meth:`ClothObjective.fingerprint`): a log
+            written for another one is moved aside, not replayed (:class:`vidsim.optim.cache.EvalCache`).
     """
     names = objective.space.names
     bad = [p for p in grid_params if p not in names]
@@ -65,7 +67,7 @@ def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, b
         raise ObjectiveError(f"cloth.fit.grid_params {bad} are not estimated parameters {names}")
     if method not in ("anneal", "cmaes"):
         raise ObjectiveError(f"fit method must be 'anneal' or 'cmaes', got {method!r}")
-    with EvalCache(objective, cache_path) as f:
+    with EvalCache(objective, cache_path, cache_context) as f:
         dims = [names.index(p) for p in grid_params]
         pts = grid_points(dims, levels, n=len(names)) if dims else np.full((1, len(names)), 0.5)
         gvals, u0 = grid_search(f, pts)

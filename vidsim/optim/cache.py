@@ -6,19 +6,86 @@ killed run resumes by running again from the start: every evaluation it already 
 here (keyed by the exact unit-cube point) and returns at once, and the run continues past the
 kill point with exactly the state it would have had. A torn last line (killed mid-write) is
 ignored on reading.
+
+A log belongs to one objective: with a ``context`` (e.g. :func:`fingerprint` of the footage and
+settings that decide a score) its first line is ``{"context": ...}``, and a log found with another
+context (or none) was written for a different objective (the footage was re-rendered, a model
+setting changed, the simulator's kernels changed): it is moved aside to ``<name>.stale-<k>.jsonl``
+(never deleted) and the run starts afresh, so a rerun after an input change does not replay
+scores of the old inputs.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import json
 import math
 import os
+import sys
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from vidsim.optim import FAILED_SCORE
+
+
+def fingerprint(*objs: Any) -> str:
+    """SHA-256 (hex) of nested values: arrays by dtype, shape and bytes, floats exactly (hex),
+    dataclasses and plain objects by their fields, mappings by sorted keys. Two objectives whose
+    inputs differ in any bit get different fingerprints."""
+    h = hashlib.sha256()
+
+    def feed(x: Any, depth: int = 0) -> None:
+        if depth > 12:
+            raise ValueError("fingerprint: nesting deeper than 12 levels (a cycle?)")
+        if x is None or isinstance(x, (bool, int, str)):
+            h.update(f"{type(x).__name__}:{x};".encode())
+        elif isinstance(x, float):
+            h.update(f"f:{float(x).hex()};".encode())
+        elif isinstance(x, np.generic):
+            feed(x.item(), depth + 1)
+        elif isinstance(x, np.ndarray):
+            h.update(f"a:{x.dtype.str}:{x.shape};".encode())
+            h.update(np.ascontiguousarray(x).tobytes())
+        elif isinstance(x, dict):
+            h.update(b"{")
+            for k in sorted(x, key=str):
+                feed(str(k), depth + 1)
+                feed(x[k], depth + 1)
+            h.update(b"}")
+        elif isinstance(x, (list, tuple)):
+            h.update(b"[")
+            for v in x:
+                feed(v, depth + 1)
+            h.update(b"]")
+        elif dataclasses.is_dataclass(x):
+            feed(type(x).__name__, depth + 1)
+            feed({f.name: getattr(x, f.name) for f in dataclasses.fields(x)}, depth + 1)
+        elif hasattr(x, "__dict__"):
+            feed(type(x).__name__, depth + 1)
+            feed({k: v for k, v in vars(x).items() if not callable(v)}, depth + 1)
+        else:
+            raise TypeError(f"fingerprint: cannot hash a {type(x).__name__}")
+
+    for o in objs:
+        feed(o)
+    return h.hexdigest()
+
+
+def log_context(path: str | os.PathLike) -> str | None:
+    """The context of an evaluation log (None: no header, or no file)."""
+    p = Path(path)
+    if not p.is_file():
+        return None
+    with open(p) as fh:
+        first = fh.readline()
+    try:
+        rec = json.loads(first)
+    except json.JSONDecodeError:
+        return None
+    return rec.get("context") if isinstance(rec, dict) else None
 
 
 def point_key(u: np.ndarray) -> str:
@@ -32,27 +99,47 @@ class EvalCache:
     Args:
         fn: ``fn(u) -> float`` or ``fn(u) -> (float, info_dict)`` on the unit cube.
         path: the JSONL log (None: in memory only).
+        context: what the scores depend on (e.g. :func:`fingerprint`); a log with another context
+            is moved aside (``stale_moved`` says where) and not replayed. None: any log is replayed.
     """
 
-    def __init__(self, fn: Callable[[np.ndarray], Any], path: str | os.PathLike | None = None) -> None:
+    def __init__(self, fn: Callable[[np.ndarray], Any], path: str | os.PathLike | None = None,
+                 context: str | None = None) -> None:
         self.fn = fn
         self.path = Path(path) if path is not None else None
+        self.context = context
         self.store: dict[str, tuple[float, dict]] = {}
         self.history: list[tuple[np.ndarray, float]] = []  # in call order, including cache hits
         self.n_new = 0
         self.n_hits = 0
+        self.stale_moved: Path | None = None
+        if self.path is not None and self.path.is_file() and context is not None \
+                and log_context(self.path) != context and self.path.stat().st_size > 0:
+            k = 1
+            while (stale := self.path.with_name(f"{self.path.stem}.stale-{k}{self.path.suffix}")).exists():
+                k += 1
+            self.path.rename(stale)
+            self.stale_moved = stale
+            print(f"{self.path}: written for another objective (footage, settings or simulator changed); "
+                  f"moved to {stale.name}, not replayed", file=sys.stderr, flush=True)
         if self.path is not None and self.path.is_file():
             for line in self.path.read_text().splitlines():
                 try:
                     rec = json.loads(line)
                 except json.JSONDecodeError:
                     continue  # torn last line of a killed run
-                self.store[rec["key"]] = (float(rec["f"]), rec.get("info", {}))
+                if "key" in rec:  # (the context header has none)
+                    self.store[rec["key"]] = (float(rec["f"]), rec.get("info", {}))
         self._fh = None
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._drop_torn_tail(self.path)
+            new = not self.path.is_file() or self.path.stat().st_size == 0
             self._fh = open(self.path, "a")
+            if new and context is not None:
+                self._fh.write(json.dumps({"context": context}) + "\n")
+                self._fh.flush()
+                os.fsync(self._fh.fileno())
 
     @staticmethod
     def _drop_torn_tail(path: Path) -> None:

@@ -270,6 +270,8 @@ def read_eval_log(path: str | Path, space_dim: int) -> tuple[np.ndarray, np.ndar
             r = json.loads(line)
         except json.JSONDecodeError:
             continue
+        if "u" not in r or "f" not in r:  # the log's context header
+            continue
         if float(r["f"]) < FAILED_SCORE and len(r["u"]) == space_dim:
             U.append(r["u"])
             f.append(float(r["f"]))
@@ -279,7 +281,8 @@ def read_eval_log(path: str | Path, space_dim: int) -> tuple[np.ndarray, np.ndar
 class _Truth:
     """The logged true objective: per-frame errors by unit-cube point (replayed on a rerun)."""
 
-    def __init__(self, evaluate: Callable[[np.ndarray], FrameEval], path: Path | None) -> None:
+    def __init__(self, evaluate: Callable[[np.ndarray], FrameEval], path: Path | None,
+                 context: str | None = None) -> None:
         self.evaluate = evaluate
 
         def fn(u):
@@ -289,7 +292,7 @@ class _Truth:
                 info["failure"] = r.failure or "failed"
             return (r.loss, info)
 
-        self.cache = EvalCache(fn, path)
+        self.cache = EvalCache(fn, path, context)
         self.points: list[np.ndarray] = []
 
     def __call__(self, u: np.ndarray) -> FrameEval | None:
@@ -324,7 +327,8 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
                     cached: list[tuple[np.ndarray, np.ndarray]], settings: ClothPosteriorSettings,
                     workdir: str | Path | None = None, candidates: list[tuple[np.ndarray, float]] | None = None,
                     progress: Callable[[str], None] | None = None,
-                    on_chunk: Callable[[dict], None] | None = None) -> ClothPosteriorResult:
+                    on_chunk: Callable[[dict], None] | None = None,
+                    context: str | None = None) -> ClothPosteriorResult:
     """Sample the cloth posterior on a checked GP surrogate.
 
     Args:
@@ -339,6 +343,8 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
             on all trials) for the multimodality check.
         progress: called with a line of text at each phase.
         on_chunk: the sampler's per-chunk callback.
+        context: what ``evaluate``'s scores depend on (e.g. the objective's fingerprint): a
+            resumed evaluation log written for another is moved aside, not replayed.
     """
     s = settings
     D = int(dim)
@@ -347,7 +353,7 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
     wd = Path(workdir) if workdir is not None else None
     if wd is not None:
         wd.mkdir(parents=True, exist_ok=True)
-    truth = _Truth(evaluate, wd / "evals.jsonl" if wd is not None else None)
+    truth = _Truth(evaluate, wd / "evals.jsonl" if wd is not None else None, context)
     n_trials = len(cached)
     rng = np.random.default_rng(s.seed)
     n_pairs = s.n_pairs or (2 * D + 2)

@@ -119,3 +119,25 @@ def test_grid_and_annealing_recover_stretch_and_resume(twin_trial, tmp_path):
     r2 = fit(obj, grid_params=["stretch"], levels=4, budget=12, anneal_cfg=cfg, cache_path=log)
     assert obj.n_evals == n_before  # replayed from the log, no new simulation
     assert r2.theta[0] == r.theta[0]
+    # the log belongs to this objective: the same inputs replay it, other model settings do not
+    r3 = fit(obj, grid_params=["stretch"], levels=4, budget=12, anneal_cfg=cfg, cache_path=log,
+             cache_context=obj.fingerprint())
+    assert r3.theta[0] == r.theta[0]
+    same = ClothObjective([tr], space, fixed=fixed, model=ModelSettings(resolution=16, settle_s=0.5), features=fs)
+    assert same.fingerprint() == obj.fingerprint()
+    n_before = same.n_evals
+    fit(same, grid_params=["stretch"], levels=4, budget=12, anneal_cfg=cfg, cache_path=log,
+        cache_context=same.fingerprint())
+    assert same.n_evals == n_before  # replayed
+    other = ClothObjective([tr], space, fixed=fixed, model=ModelSettings(resolution=16, settle_s=0.6), features=fs)
+    assert other.fingerprint() != obj.fingerprint()
+    fit(other, grid_params=["stretch"], levels=4, budget=2, anneal_cfg=cfg, cache_path=log,
+        cache_context=other.fingerprint())
+    assert other.n_evals >= 4  # the grid simulated again, not replayed
+    assert (tmp_path / "evals.stale-1.jsonl").is_file()
+    # another footage (one silhouette pixel flipped) is another objective too
+    feat2 = type(tr.features)(**{**tr.features.__dict__, "sil": tr.features.sil.copy()})
+    feat2.sil[0, 0, 0] = ~feat2.sil[0, 0, 0]
+    tr2 = Trial(tr.name, feat2, tr.times, tr.corner_paths, tr.camera, tr.projector, tr.size, tr.density)
+    assert ClothObjective([tr2], space, fixed=fixed, model=ModelSettings(resolution=16, settle_s=0.5),
+                          features=fs).fingerprint() != obj.fingerprint()

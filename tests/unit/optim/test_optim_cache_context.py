@@ -1,0 +1,88 @@
+"""Evaluation logs belong to one objective: a rerun after the inputs changed does not replay them.
+
+Seen on 3 Dec 2026: a twin re-filmed at another mesh resolution was refitted by Snakemake, and the
+fit replayed all 164 scores of the old footage from ``evals.jsonl`` (not a declared output, so
+Snakemake kept it), reporting the old optimum.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from vidsim.optim.cache import EvalCache, fingerprint, log_context
+
+
+def _calls():
+    n = {"k": 0}
+
+    def f(u):
+        n["k"] += 1
+        return float(np.sum(np.asarray(u) ** 2))
+
+    return f, n
+
+
+def test_same_context_replays_other_context_is_moved_aside(tmp_path) -> None:
+    log = tmp_path / "evals.jsonl"
+    f, n = _calls()
+    pts = [np.array([0.1, 0.2]), np.array([0.3, 0.4])]
+    with EvalCache(f, log, context="A") as c:
+        for u in pts:
+            c(u)
+    assert n["k"] == 2 and log_context(log) == "A"
+    with EvalCache(f, log, context="A") as c:
+        vals = [c(u) for u in pts]
+    assert n["k"] == 2 and c.n_hits == 2 and vals == [pytest.approx(0.05), pytest.approx(0.25)]
+    with EvalCache(f, log, context="B") as c:
+        c(pts[0])
+    assert n["k"] == 3  # evaluated again, not replayed
+    assert c.stale_moved == tmp_path / "evals.stale-1.jsonl" and c.stale_moved.is_file()
+    assert log_context(log) == "B" and log_context(c.stale_moved) == "A"
+    # the old records were kept, not lost
+    assert sum(1 for line in c.stale_moved.read_text().splitlines() if "key" in json.loads(line)) == 2
+    # a second change keeps both old logs
+    with EvalCache(f, log, context="C") as c:
+        pass
+    assert c.stale_moved == tmp_path / "evals.stale-2.jsonl"
+
+
+def test_log_without_header_is_not_replayed_under_a_context_but_is_without(tmp_path) -> None:
+    log = tmp_path / "evals.jsonl"
+    f, n = _calls()
+    with EvalCache(f, log) as c:  # no context: no header (the logs before this change)
+        c(np.array([0.5]))
+    assert log_context(log) is None
+    with EvalCache(f, log) as c:
+        c(np.array([0.5]))
+    assert n["k"] == 1  # replayed
+    with EvalCache(f, log, context="A") as c:
+        c(np.array([0.5]))
+    assert n["k"] == 2 and c.stale_moved is not None
+    with EvalCache(f, log) as c:  # no context asked: a header is skipped, the records replayed
+        c(np.array([0.5]))
+    assert n["k"] == 2
+
+
+@dataclass
+class _Settings:
+    resolution: int
+    settle_s: float
+
+
+def test_fingerprint_sees_every_bit_and_ignores_key_order() -> None:
+    a = np.linspace(0.0, 1.0, 11)
+    b = a.copy()
+    b[3] = np.nextafter(b[3], 2.0)  # one ulp
+    assert fingerprint(a) != fingerprint(b)
+    assert fingerprint(a) == fingerprint(a.copy())
+    assert fingerprint(a) != fingerprint(a.astype(np.float32))
+    assert fingerprint({"x": 1.0, "y": a}) == fingerprint({"y": a.copy(), "x": 1.0})
+    assert fingerprint(0.1) != fingerprint(np.nextafter(0.1, 1.0))
+    assert fingerprint(_Settings(12, 0.5)) != fingerprint(_Settings(12, 0.6))
+    assert fingerprint(_Settings(12, 0.5)) == fingerprint(_Settings(12, 0.5))
+    with pytest.raises(TypeError):
+        fingerprint({1, 2})
