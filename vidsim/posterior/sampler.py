@@ -16,6 +16,7 @@ whole chain): a chain is ``converged`` only when its length is at least ``min_ta
 from __future__ import annotations
 
 import os
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,6 +128,18 @@ def _state_tuple(z: dict) -> tuple:
     return ("MT19937", z["rs_keys"], int(z["rs_pos"]), int(z["rs_gauss"][0]), float(z["rs_gauss"][1]))
 
 
+def _same_posterior(lp_one: Callable[[np.ndarray], float], walkers: np.ndarray, saved: np.ndarray) -> bool:
+    """Whether ``lp_one`` gives the saved log densities at the saved last walker positions (to
+    1e-9 relative; -inf where -inf was saved)."""
+    for x, lp0 in zip(walkers, saved):
+        lp = lp_one(np.asarray(x, float))
+        if np.isfinite(lp0) != np.isfinite(lp):
+            return False
+        if np.isfinite(lp0) and abs(lp - lp0) > 1e-9 * max(1.0, abs(lp0)):
+            return False
+    return True
+
+
 def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.ndarray,
            cfg: SamplerConfig | None = None, path: str | os.PathLike | None = None,
            progress: Callable[[dict], None] | None = None, vectorize: bool = False) -> Chain:
@@ -138,7 +151,9 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
         center: (D,) the optimiser's result (the walkers' starting ball is around it).
         cov: (D, D) approximate posterior covariance (shapes the starting ball).
         cfg: sampler settings.
-        path: chain file (``.npz``); an existing file from the same settings is resumed.
+        path: chain file (``.npz``); an existing file from the same settings is resumed once
+            ``log_prob`` reproduces the saved log densities of its last walkers (otherwise it was
+            sampled from another posterior: it is moved aside to ``<name>.stale-<k>.npz``).
         progress: called after every chunk with ``{"step", "max_steps", "tau_max", "seconds"}``.
         vectorize: ``log_prob`` takes an (n, D) array and returns (n,) values (emcee's
             ``vectorize``; a cheap surrogate evaluates the whole half-ensemble at once).
@@ -166,6 +181,16 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
         rs = _state_tuple(z)
     rng = np.random.default_rng(cfg.seed)
     lp_one = (lambda x: float(log_prob(np.asarray(x)[None, :])[0])) if vectorize else log_prob
+    if chains and not _same_posterior(lp_one, chains[0][-1], lps[0][-1]):
+        # the chain was sampled from another posterior (its footage or settings changed since it
+        # was killed): keep it aside and start afresh rather than continue a foreign chain
+        k = 1
+        while (stale := Path(path).with_name(f"{Path(path).stem}.stale-{k}{Path(path).suffix}")).exists():
+            k += 1
+        Path(path).rename(stale)
+        print(f"{path}: its walkers' saved log densities do not match this posterior (inputs changed since "
+              f"it was written); moved to {stale.name}, sampling afresh", file=sys.stderr, flush=True)
+        chains, lps, rs = [], [], None
     L = np.linalg.cholesky(cov + 1e-300 * np.eye(D)) if np.all(np.linalg.eigvalsh(cov) > 0) else np.diag(
         np.sqrt(np.maximum(np.diag(cov), 1e-30)))
     if chains:

@@ -53,6 +53,21 @@ def test_resume_is_bit_identical(tmp_path) -> None:
     np.testing.assert_array_equal(full.log_prob, resumed.log_prob)
 
 
+def test_a_chain_of_another_posterior_is_not_resumed(tmp_path) -> None:
+    cfg100 = SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=100, seed=5)
+    cfg200 = SamplerConfig(n_walkers=8, chunk=50, min_steps=200, max_steps=200, seed=5)
+    sample(_logp, MEAN, COV, cfg100, tmp_path / "b.npz")  # killed after 100 steps
+
+    def shifted(x: np.ndarray) -> float:  # the inputs changed before the rerun
+        return _logp(np.asarray(x) - 0.3)
+
+    again = sample(shifted, MEAN, COV, cfg200, tmp_path / "b.npz")
+    assert again.n_evals == 200 * 8  # sampled afresh, not continued
+    assert (tmp_path / "b.stale-1.npz").is_file()
+    fresh = sample(shifted, MEAN, COV, cfg200, tmp_path / "c.npz")
+    np.testing.assert_array_equal(again.chain, fresh.chain)
+
+
 def test_bad_settings_name_the_field(tmp_path) -> None:
     with pytest.raises(PosteriorError, match="n_walkers"):
         sample(_logp, MEAN, COV, SamplerConfig(n_walkers=4))
