@@ -14,13 +14,12 @@ solution"); ``fit.yaml`` then also lists each trial's error. Every evaluation is
 evaluations without simulating and continues. The log's first line is the objective's
 fingerprint (:meth:`vidsim.clothfit.objective.ClothObjective.fingerprint`): a rerun whose footage
 or settings changed moves the old log aside (``evals.stale-<k>.jsonl``) instead of replaying it. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
-selection), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
+selection, from this run's evaluations only), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
 silhouette and angle maps, per-frame error and the energy curve).
 """
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -52,16 +51,12 @@ class _Progressed:
         return out
 
 
-def candidates(cache_path: Path, space, k: int) -> list[dict]:
-    """The ``k`` best distinct evaluated points of a fit's log (unit-cube distance > 0.05)."""
-    rows = []
-    for line in cache_path.read_text().splitlines():
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if "f" in r and r["f"] < FAILED_SCORE:  # (the context header has no score)
-            rows.append((float(r["f"]), np.asarray(r["u"], float)))
+def candidates(points: np.ndarray, values: np.ndarray, space, k: int) -> list[dict]:
+    """The ``k`` best distinct points this fit evaluated (unit-cube distance > 0.05; failures
+    excluded). Only this run's evaluations count (``FitResult.points``, replays of its own
+    earlier evaluations included), not everything its log holds: a rerun with another seed in the
+    same folder must hand the selection what a run in an empty folder would."""
+    rows = [(float(f), np.asarray(u, float)) for u, f in zip(points, values) if f < FAILED_SCORE]
     rows.sort(key=lambda x: x[0])
     out: list[tuple[float, np.ndarray]] = []
     for f, u in rows:
@@ -116,7 +111,7 @@ def run(cfg: DictConfig) -> None:
         "trials": [t.name for t in trials], "per_trial": [float(e) for e in ev.per_trial] if ev.ok else None,
         "score": float(res.score), "params": params_dict(best), "estimated": list(space.names),
         "start": {"score": float(res.grid_values[grid_best]), "params": params_dict(start)},
-        "candidates": candidates(log, space, int(fc.n_candidates)),
+        "candidates": candidates(res.points, np.concatenate([res.grid_values, res.trace]), space, int(fc.n_candidates)),
         "n_evals": int(res.n_evals), "n_new_simulations": int(n_new), "n_failed": int(np.sum(res.trace >= FAILED_SCORE)),
         "seconds": {"features": round(t_feat, 2), "fit": round(t_fit, 2)},
         "e_fold_mean": float(np.mean(ev.e_fold[0])) if ev.ok else None,

@@ -9,7 +9,7 @@ at mid-range; its best point starts the annealing (or CMA-ES) for ``budget`` eva
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,6 +33,7 @@ class FitResult:
         trace: (evals,) every objective value after the grid, in order.
         best_trace: (grid + evals,) best-so-far over all evaluations (error vs evaluations).
         n_evals: evaluations made (grid + optimiser), cache hits included.
+        points: (n_evals, dim) the unit-cube points of those evaluations, in order.
     """
 
     theta: np.ndarray
@@ -41,6 +42,7 @@ class FitResult:
     trace: np.ndarray
     best_trace: np.ndarray
     n_evals: int
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, budget: int = 600,
@@ -83,5 +85,6 @@ def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, b
         vals = np.array([v for _, v in f.history])
         if gvals.min() < f_best:
             u_best, f_best = u0, float(gvals.min())
+        pts_all = np.array([u for u, _ in f.history], float).reshape(len(vals), len(names))
     return FitResult(objective.space.from_unit(u_best), float(f_best), gvals, vals[n_grid:],
-                     np.minimum.accumulate(vals), len(vals))
+                     np.minimum.accumulate(vals), len(vals), pts_all)

@@ -1,8 +1,7 @@
-"""The candidates a fit hands to the cross-trial selection: best first, distinct, failures excluded."""
+"""The candidates a fit hands to the cross-trial selection: best first, distinct, failures excluded,
+and only the run's own evaluations (a log shared with an earlier run in the folder does not leak)."""
 
 from __future__ import annotations
-
-import json
 
 import numpy as np
 
@@ -11,12 +10,38 @@ from vidsim.optim import FAILED_SCORE
 from vidsim.optim.space import Space
 
 
-def test_candidates_are_best_distinct_and_never_failures(tmp_path):
+def test_candidates_are_best_distinct_and_never_failures():
     space = Space.from_config({"stretch": {"lo": 20.0, "hi": 4000.0, "log": True}, "bend": {"lo": 1e-7, "hi": 1e-4, "log": True}})
     recs = [([0.5, 0.5], 3.0), ([0.51, 0.5], 2.5), ([0.9, 0.1], 4.0), ([0.2, 0.2], FAILED_SCORE), ([0.1, 0.9], 5.0)]
-    log = tmp_path / "evals.jsonl"
-    log.write_text("".join(json.dumps({"key": str(i), "u": u, "f": f, "info": {}}) + "\n" for i, (u, f) in enumerate(recs))
-                   + '{"key": "torn", "u": [0.3')
-    c = candidates(log, space, 3)
+    c = candidates(np.array([u for u, _ in recs]), np.array([f for _, f in recs]), space, 3)
     assert [x["score"] for x in c] == [2.5, 4.0, 5.0]  # 3.0 is within 0.05 of the best point
     assert np.isclose(c[0]["theta"]["stretch"], space.from_unit(np.array([0.51, 0.5]))[0])
+
+
+def test_a_second_seed_in_the_same_folder_gets_its_own_candidates(tmp_path):
+    """Two annealing runs with different seeds on one objective and one log: the second run's
+    candidates are those of the same seed run in an empty folder (seen 3 Dec 2026: they were the
+    union of both runs' logged points)."""
+    from vidsim.clothfit.study import fit
+    from vidsim.optim.anneal import AnnealConfig
+
+    space = Space.from_config({"stretch": {"lo": 20.0, "hi": 4000.0, "log": True}, "bend": {"lo": 1e-7, "hi": 1e-4, "log": True}})
+
+    class Quad:  # a cheap objective with the interface fit() reads
+        def __init__(self) -> None:
+            self.space = space
+
+        def __call__(self, u):
+            u = np.asarray(u, float)
+            return float(np.sum((u - np.array([0.3, 0.7])) ** 2)), {}
+
+    cfg = AnnealConfig(evals_per_T=4, step=0.1)
+    shared = tmp_path / "shared" / "evals.jsonl"
+    fit(Quad(), grid_params=["stretch", "bend"], levels=3, budget=20, anneal_cfg=cfg, seed=1, cache_path=shared)
+    r2 = fit(Quad(), grid_params=["stretch", "bend"], levels=3, budget=20, anneal_cfg=cfg, seed=2, cache_path=shared)
+    alone = fit(Quad(), grid_params=["stretch", "bend"], levels=3, budget=20, anneal_cfg=cfg, seed=2,
+                cache_path=tmp_path / "alone" / "evals.jsonl")
+    np.testing.assert_array_equal(r2.points, alone.points)
+    c2 = candidates(r2.points, np.r_[r2.grid_values, r2.trace], space, 3)
+    ca = candidates(alone.points, np.r_[alone.grid_values, alone.trace], space, 3)
+    assert c2 == ca
