@@ -13,7 +13,9 @@ solution"); ``fit.yaml`` then also lists each trial's error. Every evaluation is
 ``evals.jsonl`` in the output folder (fsync'd): a killed stage, run again, replays those
 evaluations without simulating and continues. The log's first line is the objective's
 fingerprint (:meth:`vidsim.clothfit.objective.ClothObjective.fingerprint`): a rerun whose footage
-or settings changed moves the old log aside (``evals.stale-<k>.jsonl``) instead of replaying it. Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
+or settings changed moves the old log aside (``evals.stale-<k>.jsonl``) instead of replaying it,
+and a finished run leaves only its own evaluations in the log (an earlier run's, e.g. with
+another seed, go to ``evals.other-runs-<k>.jsonl``). Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
 selection, from this run's evaluations only), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
 silhouette and angle maps, per-frame error and the energy curve).
 """
@@ -35,6 +37,7 @@ from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.optim import FAILED_SCORE
 from vidsim.optim.anneal import AnnealConfig
+from vidsim.optim.cache import keep_only, point_key
 from vidsim.report.figures import save_figure
 
 
@@ -96,6 +99,11 @@ def run(cfg: DictConfig) -> None:
               method=str(fc.method), anneal_cfg=acfg, sigma0=float(fc.cma_sigma0), seed=int(fc.seed), cache_path=log,
               cache_context=obj.fingerprint())
     n_new = obj.n_evals - n_before
+    # the log keeps this run's evaluations only (earlier runs' records of the same objective moved aside)
+    aside = keep_only(log, {point_key(u) for u in res.points})
+    if aside is not None:
+        print(f"fit_cloth {label}: evaluations of earlier runs in {log.name} (another seed or budget) moved to "
+              f"{aside.name}", flush=True)
     t_fit = time.perf_counter() - t0 - t_feat
     best = obj.params(res.theta, trial.density)
     grid_best = int(np.argmin(res.grid_values))

@@ -191,3 +191,38 @@ class EvalCache:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | None:
+    """Reduce an evaluation log to the records of ``keys`` (a finished run's own evaluations), its
+    context header kept, written atomically; records of other runs of the same objective (another
+    seed or budget, replayed only where they coincide) are moved to ``<name>.other-runs-<k>.jsonl``
+    rather than deleted. Then the log, and whatever reads it later (the cloth posterior's
+    surrogate), is what a run in an empty folder leaves. Returns the path of the moved records,
+    or None when there were none."""
+    from vidsim.io.atomic import write_text
+
+    p = Path(path)
+    if not p.is_file():
+        return None
+    keys = set(keys)
+    lines = p.read_text().splitlines()
+    keep, other = [], []
+    for line in lines:
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if "key" not in rec or rec["key"] in keys:
+            keep.append(line)
+        else:
+            other.append(line)
+    if not other:
+        return None
+    k = 1
+    while (aside := p.with_name(f"{p.stem}.other-runs-{k}{p.suffix}")).exists():
+        k += 1
+    write_text(aside, "\n".join(lines) + "\n")
+    write_text(p, "\n".join(keep) + "\n")
+    return aside
+

@@ -86,3 +86,27 @@ def test_fingerprint_sees_every_bit_and_ignores_key_order() -> None:
     assert fingerprint(_Settings(12, 0.5)) == fingerprint(_Settings(12, 0.5))
     with pytest.raises(TypeError):
         fingerprint({1, 2})
+
+
+def test_keep_only_leaves_the_runs_own_records_and_moves_the_rest(tmp_path) -> None:
+    from vidsim.optim.cache import keep_only, point_key
+
+    log = tmp_path / "evals.jsonl"
+    f, n = _calls()
+    a, b, c = np.array([0.1]), np.array([0.2]), np.array([0.3])
+    with EvalCache(f, log, context="A") as cache:  # an earlier run evaluated a and b
+        cache(a)
+        cache(b)
+    with EvalCache(f, log, context="A") as cache:  # this run: b (replayed) and c
+        cache(b)
+        cache(c)
+    assert n["k"] == 3
+    aside = keep_only(log, {point_key(u) for u in (b, c)})
+    assert aside == tmp_path / "evals.other-runs-1.jsonl"
+    kept = [json.loads(line) for line in log.read_text().splitlines()]
+    assert kept[0] == {"context": "A"} and [r["key"] for r in kept[1:]] == [point_key(b), point_key(c)]
+    assert sum(1 for line in aside.read_text().splitlines() if "key" in json.loads(line)) == 3  # nothing lost
+    assert keep_only(log, {point_key(u) for u in (b, c)}) is None  # nothing more to move
+    with EvalCache(f, log, context="A") as cache:  # still resumable
+        cache(c)
+    assert n["k"] == 3
