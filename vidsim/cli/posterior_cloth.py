@@ -21,6 +21,7 @@ evaluation: a killed run replays them and resumes its chain). Never reads truth.
 from __future__ import annotations
 
 import dataclasses
+import re
 import shutil
 import time
 from pathlib import Path
@@ -209,7 +210,9 @@ def run(cfg: DictConfig) -> None:
     save_figure(correlation_figure(corr, dnames, "cloth posterior correlation (log10 of log-scaled parameters)"),
                 tmp / "correlation.png")
     check_figure(post.check, post.w, tmp / "check.png")
-    last = sorted(tmp.glob("chain_r*.npz"))[-1]
+    # the last refinement round's chain (by number; chains moved aside as stale do not match)
+    rounds = [(int(m.group(1)), p) for p in tmp.glob("chain_r*.npz") if (m := re.fullmatch(r"chain_r(\d+)\.npz", p.name))]
+    last = max(rounds)[1]
     shutil.copyfile(last, tmp / "chain.npz")
     if out.exists():
         shutil.rmtree(out)

@@ -206,14 +206,17 @@ def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | Non
     if not p.is_file():
         return None
     keys = set(keys)
-    lines = p.read_text().splitlines()
-    keep, other = [], []
-    for line in lines:
+    header, keep, other = [], [], []
+    for line in p.read_text().splitlines():
         try:
             rec = json.loads(line)
         except json.JSONDecodeError:
+            continue  # a torn line
+        if not isinstance(rec, dict):
             continue
-        if "key" not in rec or rec["key"] in keys:
+        if "key" not in rec:
+            header.append(line)
+        elif rec["key"] in keys:
             keep.append(line)
         else:
             other.append(line)
@@ -222,7 +225,7 @@ def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | Non
     k = 1
     while (aside := p.with_name(f"{p.stem}.other-runs-{k}{p.suffix}")).exists():
         k += 1
-    write_text(aside, "\n".join(lines) + "\n")
-    write_text(p, "\n".join(keep) + "\n")
+    write_text(aside, "\n".join(header + other) + "\n")  # written before the log is cut: nothing lost on a kill
+    write_text(p, "\n".join(header + keep) + "\n")
     return aside
 

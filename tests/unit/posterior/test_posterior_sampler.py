@@ -63,9 +63,26 @@ def test_a_chain_of_another_posterior_is_not_resumed(tmp_path) -> None:
 
     again = sample(shifted, MEAN, COV, cfg200, tmp_path / "b.npz")
     assert again.n_evals == 200 * 8  # sampled afresh, not continued
-    assert (tmp_path / "b.stale-1.npz").is_file()
+    assert (tmp_path / "stale-1.b.npz").is_file()
     fresh = sample(shifted, MEAN, COV, cfg200, tmp_path / "c.npz")
     np.testing.assert_array_equal(again.chain, fresh.chain)
+
+
+def test_vectorised_resume_tolerates_batch_rounding(tmp_path) -> None:
+    """A vectorised density (a GP surrogate) rounds differently in other batch shapes than
+    emcee's half-ensembles; the resume check must not take that for changed inputs."""
+
+    def batched(X: np.ndarray) -> np.ndarray:
+        X = np.atleast_2d(X)
+        return np.array([_logp(x) for x in X]) * (1.0 + 1e-9 * len(X))  # batch-shape rounding
+
+    cfg100 = SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=100, seed=5)
+    cfg200 = SamplerConfig(n_walkers=8, chunk=50, min_steps=200, max_steps=200, seed=5)
+    full = sample(batched, MEAN, COV, cfg200, tmp_path / "a.npz", vectorize=True)
+    sample(batched, MEAN, COV, cfg100, tmp_path / "b.npz", vectorize=True)
+    resumed = sample(batched, MEAN, COV, cfg200, tmp_path / "b.npz", vectorize=True)
+    assert resumed.n_evals == 100 * 8 and not list(tmp_path.glob("stale-*"))
+    np.testing.assert_array_equal(full.chain, resumed.chain)
 
 
 def test_bad_settings_name_the_field(tmp_path) -> None:
