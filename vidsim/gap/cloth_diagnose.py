@@ -65,7 +65,8 @@ from scipy.optimize import least_squares
 
 from vidsim.cloth import ClothParams
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup, hermite, soft_coverage
-from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search, score_screen
+from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search
+from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
 
 BAD_RESIDUAL = 1.0
@@ -850,15 +851,7 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             # only the frames that can tell their time (as in the refit), jitter and placebo alike
             blocks["time_jitter"] = blocks["time_jitter"][:, timed]
             blocks["placebo_jitter"] = placebo_jacobian(pall, theta_ext)[:, timed] * CLOTH_EFFECTS["time_jitter"].scale
-        scr = score_screen(J[:, :k_cur], blocks, r, one_sided)
-        if "time_jitter" in scr:
-            # per-frame freedom explains some residual whatever its cause: count only what it
-            # explains beyond an equally free placebo
-            scr["time_jitter"]["fraction_raw"] = scr["time_jitter"]["fraction"]
-            scr["time_jitter"]["fraction"] -= scr["placebo_jitter"]["fraction"]
-        for i, c in enumerate(sorted(names, key=lambda c: -scr[c]["fraction"])):
-            scr[c]["rank"] = i + 1
-        return scr
+        return rank_screen(score_screen(J[:, :k_cur], blocks, r, one_sided), names)
 
     screen = run_screen((), theta_b, cands)
     ranked = sorted(cands, key=lambda c: screen[c]["rank"])

@@ -339,6 +339,19 @@ def score_screen(J_theta: np.ndarray, blocks: dict[str, np.ndarray], r: np.ndarr
     return out
 
 
+def rank_screen(scr: dict[str, dict], names) -> dict[str, dict]:
+    """Rank the screened candidates ``names`` by their fraction (``rank`` 1 = first), after
+    crediting per-frame time jitter only with what it explains beyond its placebo (``placebo_jitter``
+    in ``scr``: per-frame freedom explains some residual whatever its cause). Modifies and returns
+    ``scr``."""
+    if "time_jitter" in scr:
+        scr["time_jitter"]["fraction_raw"] = scr["time_jitter"]["fraction"]
+        scr["time_jitter"]["fraction"] -= scr["placebo_jitter"]["fraction"]
+    for i, c in enumerate(sorted(names, key=lambda c: -scr[c]["fraction"])):
+        scr[c]["rank"] = i + 1
+    return scr
+
+
 def _free_pose_gap(model: RigidGapModel, obs: np.ndarray, roi: np.ndarray, theta: np.ndarray,
                    frames: np.ndarray) -> np.ndarray:
     """(F,) per-frame mismatch after fitting each frame's pose on its own (6 free numbers)."""
@@ -663,15 +676,7 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         if "time_jitter" in blocks:
             blocks["placebo_jitter"] = pall.placebo_jacobian(theta_ext) * RIGID_EFFECTS["time_jitter"].scale
         n_renders += pall.n_evals
-        scr = score_screen(Jall[:, :k_base], blocks, r, one_sided)
-        if "time_jitter" in scr:
-            # per-frame freedom explains some residual whatever its cause: count only what it
-            # explains beyond an equally free placebo
-            scr["time_jitter"]["fraction_raw"] = scr["time_jitter"]["fraction"]
-            scr["time_jitter"]["fraction"] -= scr["placebo_jitter"]["fraction"]
-        for i, c in enumerate(sorted(names, key=lambda c: -scr[c]["fraction"])):
-            scr[c]["rank"] = i + 1
-        return scr
+        return rank_screen(score_screen(Jall[:, :k_base], blocks, r, one_sided), names)
 
     screen = run_screen((), theta_b, cands)
     ranked = sorted(cands, key=lambda c: screen[c]["rank"])
