@@ -92,6 +92,26 @@ def test_twin_select_profile_score_and_method_comparison(study):
     for p in pdoc["profiles"].values():
         lo, hi = p["interval"]
         assert lo <= p["estimate"] <= hi and 0 <= p["width_fraction"] <= 1
+    assert pdoc["kind"] == "slice" and not (prof / "evals.jsonl").exists()
+    # a profile proper (the other parameter re-optimised at each point): never above the slice,
+    # its evaluations logged, and a rerun (a killed stage restarted) replays them to the same result
+    prof2 = res / "cloth" / "profile_reopt" / "twin"
+    for _ in range(2):
+        _run("vidsim.cli.cloth_profile", *base, f"paths.out={prof2}", f"cloth.profile.params={params}",
+             f"cloth.profile.footage=[{fp['exp1']},{fp['exp2']}]", "cloth.profile.reoptimise_evals=4")
+        rdoc = yaml.safe_load((prof2 / "profile.yaml").read_text())
+        if _ == 0:
+            first_r, n_log = rdoc, len((prof2 / "evals.jsonl").read_text().splitlines())
+    assert rdoc == first_r and len((prof2 / "evals.jsonl").read_text().splitlines()) == n_log
+    assert rdoc["kind"] == "profile" and rdoc["reoptimise_evals"] == 4
+
+    def _csv(path):
+        rows = [ln.split(",") for ln in path.read_text().splitlines()[1:]]
+        return {(r[0], r[1]): float(r[3]) for r in rows}
+
+    slice_e, prof_e = _csv(prof / "profiles.csv"), _csv(prof2 / "profiles.csv")
+    assert set(slice_e) == set(prof_e)
+    assert all(prof_e[k] <= slice_e[k] * (1 + 1e-12) for k in slice_e)
     score = res / "cloth" / "twin" / "twin"
     _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={score}", f"cloth.twin.params={params}",
          f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}")

@@ -5,8 +5,9 @@ cloth.profile.params=results/cloth/select/linen/params.yaml
 cloth.profile.footage=[results/footage/cloth_linen_exp1,results/footage/cloth_linen_exp2]``
 
 Around the selected parameters, each estimated parameter is swept across its whole range with the
-others held, on the fitted trials together (E1 + E2, the selection's criterion); see
-:mod:`vidsim.clothfit.profile`. Writes ``profile.yaml`` (per parameter: estimate, ``determined``,
+others held (a slice; with ``cloth.profile.reoptimise_evals=N`` the others are re-optimised at each
+point, a profile proper, its evaluations logged to ``evals.jsonl`` for resuming), on the fitted
+trials together (E1 + E2, the selection's criterion); see :mod:`vidsim.clothfit.profile`. Writes ``profile.yaml`` (per parameter: estimate, ``determined``,
 indifference interval, its width as a fraction of the range), ``profiles.csv`` and
 ``profiles.png`` (one panel per parameter; a flat profile is labelled "not determined").
 """
@@ -40,21 +41,33 @@ def run(cfg: DictConfig) -> None:
     if missing:
         raise ClothStageError(f"{pc.params}: params lack {missing}")
     theta = np.array([float(sel["params"][n]) for n in obj.space.names])
-    n_eval = obj.space.dim * int(pc.points) + 1
-    prog = Progress(n_eval, "profile_cloth", enabled=cfg.log.progress)
-    profs = profile_parameters(obj, theta, points=int(pc.points), tol=float(pc.tol), max_width=float(pc.max_width),
-                               on_eval=lambda n, v, e: prog.update(note=f"{n} = {v:.3g}: E = {e:.4g}"))
+    reopt = int(pc.get("reoptimise_evals", 0))
+    if reopt < 0:
+        raise ClothStageError(f"cloth.profile.reoptimise_evals must be >= 0 (0: a slice), got {reopt}")
+    n_points = obj.space.dim * int(pc.points)
+    prog = Progress(n_points, "profile_cloth" + (f" (others re-optimised, {reopt} evaluations per point)"
+                                                 if reopt else ""), enabled=cfg.log.progress)
+    from contextlib import nullcontext
+
+    from vidsim.optim.cache import EvalCache
+
+    # a profile's evaluations are logged (keyed by the objective's fingerprint): a killed stage resumes
+    with (EvalCache(obj, out / "evals.jsonl", context=obj.fingerprint()) if reopt else nullcontext()) as f_unit:
+        profs = profile_parameters(obj, theta, points=int(pc.points), tol=float(pc.tol), max_width=float(pc.max_width),
+                                   on_eval=lambda n, v, e: prog.update(note=f"{n} = {v:.3g}: E = {e:.4g}"),
+                                   reoptimise_evals=reopt, seed=int(pc.get("seed", 0)), f_unit=f_unit)
     doc = {"params": str(pc.params), "footage": list(pc.footage), "tol": float(pc.tol),
-           "max_width": float(pc.max_width), "profiles": {p.name: p.to_dict() for p in profs},
+           "max_width": float(pc.max_width), "kind": "profile" if reopt else "slice",
+           "reoptimise_evals": reopt, "profiles": {p.name: p.to_dict() for p in profs},
            "not_determined": [p.name for p in profs if not p.determined]}
     write_text(out / "profiles.csv", "parameter,unit_position,value,error\n" + "".join(
         f"{p.name},{u:.4f},{v:.6g},{e:.6g}\n" for p in profs for u, v, e in zip(p.u, p.values, p.errors)))
-    _figure(profs, obj.space, float(pc.tol), out / "profiles.png")
+    _figure(profs, obj.space, float(pc.tol), out / "profiles.png", reopt)
     write_yaml(out / "profile.yaml", doc)
     print(f"profile_cloth: not determined by the footage: {doc['not_determined'] or 'none'}", flush=True)
 
 
-def _figure(profs, space, tol: float, path: Path) -> None:
+def _figure(profs, space, tol: float, path: Path, reopt: int = 0) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,7 +92,9 @@ def _figure(profs, space, tol: float, path: Path) -> None:
         ax.set_ylabel("E / E(estimate)", fontsize=7)
     for ax in axes.ravel()[n:]:
         ax.set_axis_off()
-    fig.suptitle(f"error profiles (grey: within {tol:.0%} of the estimate; green: indifference interval)", fontsize=8)
+    kind = (f"profiles, the others re-optimised ({reopt} evaluations per point)" if reopt
+            else "slices, the others held at the estimate")
+    fig.suptitle(f"error {kind}\n(grey: within {tol:.0%} of the estimate; green: indifference interval)", fontsize=8)
     save_figure(fig, path)
 
 

@@ -1,10 +1,16 @@
 """Error profiles: which cloth parameters the footage determines (issue 5, twin criteria).
 
 Along each estimated parameter the objective is evaluated on a grid across its whole range (unit
-cube of :class:`~vidsim.optim.space.Space`, log axes in log) with every other parameter at the
-estimate. The *indifference interval* is where the profile stays within ``tol`` (relative) of the
-error at the estimate; a parameter whose interval covers more than ``max_width`` of its range has a
-flat profile: the footage does not determine it, and it is reported as such instead of as a number.
+cube of :class:`~vidsim.optim.space.Space`, log axes in log). By default every other parameter is
+held at the estimate: a *slice*, which calls a parameter determined whenever the error changes
+along it, even where another parameter could make up for the change. With ``reoptimise_evals``
+the other parameters are re-optimised at every grid point (a *profile* in the statistical sense:
+the least error with the parameter held there), by the project's annealing, warm-started from the
+neighbouring grid point's optimum as the walk moves out from the estimate; the profile is never
+above the slice (the slice's value is kept where the search finds nothing better). The
+*indifference interval* is where the profile stays within ``tol`` (relative) of the error at the
+estimate; a parameter whose interval covers more than ``max_width`` of its range has a flat
+profile: the footage does not determine it, and it is reported as such instead of as a number.
 Everything here reads footage errors only (never truth).
 """
 
@@ -77,7 +83,8 @@ def indifference_interval(u: np.ndarray, e: np.ndarray, u_hat: float, e_hat: flo
 
 
 def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: float = 0.05,
-                       max_width: float = 0.5, on_eval=None) -> list[Profile]:
+                       max_width: float = 0.5, on_eval=None, reoptimise_evals: int = 0, seed: int = 0,
+                       f_unit=None) -> list[Profile]:
     """Profiles of every estimated parameter around ``theta_hat``.
 
     Args:
@@ -87,25 +94,58 @@ def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: f
         points: grid points across each range (the estimate is added).
         tol: relative error rise that still counts as "as good".
         max_width: widest interval (fraction of the range) that still counts as determined.
-        on_eval: optional callback ``(name, value, error)`` after each evaluation (progress).
+        on_eval: optional callback ``(name, value, error)`` after each grid point (progress).
+        reoptimise_evals: 0: a slice (the others held at the estimate); > 0: at each grid point
+            the other parameters are re-optimised with this many annealing evaluations (see the
+            module's docstring); the grid point's own evaluation comes first.
+        seed: the annealing's seed.
+        f_unit: the objective on the unit cube (e.g. an :class:`~vidsim.optim.cache.EvalCache`
+            of ``objective``, so that a killed run resumes); None: ``objective.evaluate``.
     """
+    from vidsim.optim.anneal import AnnealConfig, anneal
+
     space = objective.space
+    if reoptimise_evals < 0:
+        raise ValueError(f"reoptimise_evals must be >= 0, got {reoptimise_evals}")
     th = np.asarray(theta_hat, float)
-    u_hat = space.to_unit(th)
-    e_hat = float(objective.evaluate(th).score)
+    u_hat = np.clip(space.to_unit(th), 0.0, 1.0)
+    if f_unit is None:
+        def f_unit(u: np.ndarray) -> float:
+            return float(objective.evaluate(space.from_unit(u)).score)
+    e_hat = float(objective.evaluate(th).score)  # the estimate itself (no unit-cube round trip)
     out = []
     for d, name in enumerate(space.names):
-        grid = np.unique(np.concatenate([np.linspace(0.0, 1.0, int(points)), [float(np.clip(u_hat[d], 0, 1))]]))
+        grid = np.unique(np.concatenate([np.linspace(0.0, 1.0, int(points)), [float(u_hat[d])]]))
         errs = np.empty(grid.size)
-        for k, ud in enumerate(grid):
-            if abs(ud - u_hat[d]) < 1e-12:
-                errs[k] = e_hat
-                continue
-            uu = u_hat.copy()
-            uu[d] = ud
-            errs[k] = float(objective.evaluate(space.from_unit(uu)).score)
-            if on_eval is not None:
-                on_eval(name, float(space.from_unit(uu)[d]), errs[k])
+        k_hat = int(np.argmin(np.abs(grid - u_hat[d])))
+        errs[k_hat] = e_hat
+        others = np.arange(space.dim) != d
+        # outward from the estimate, each side warm-started from its neighbour's optimum
+        for side in (range(k_hat + 1, grid.size), range(k_hat - 1, -1, -1)):
+            warm = u_hat.copy()
+            for k in side:
+                uu = warm.copy()
+                uu[d] = grid[k]
+                slice_u = u_hat.copy()
+                slice_u[d] = grid[k]
+                e_best = float(f_unit(slice_u))
+                best = slice_u
+                if reoptimise_evals > 0 and others.any():
+                    def f_others(v: np.ndarray, uu=uu) -> float:
+                        w = uu.copy()
+                        w[others] = v
+                        return float(f_unit(w))
+
+                    res = anneal(f_others, uu[others], AnnealConfig(budget=int(reoptimise_evals), evals_per_T=6,
+                                                                   step=0.1, min_step=0.02, seed=int(seed)))
+                    if res.best_f < e_best:
+                        e_best = float(res.best_f)
+                        best = uu.copy()
+                        best[others] = res.best_u
+                errs[k] = e_best
+                warm = best
+                if on_eval is not None:
+                    on_eval(name, float(space.from_unit(slice_u)[d]), errs[k])
         vals = np.array([space.from_unit(np.where(np.arange(space.dim) == d, g, u_hat))[d] for g in grid])
         e_use = np.where(errs >= FAILED_SCORE, np.inf, errs)
         lo, hi = indifference_interval(grid, e_use, float(u_hat[d]), e_hat, tol)

@@ -243,11 +243,17 @@ class ClothValidateConfig:
 class ClothProfileConfig:
     """Error profiles (``profile_cloth``): ``points`` per parameter across its range; a parameter is
     *determined* when the range within ``tol`` (relative error rise) of the estimate is at most
-    ``max_width`` of its range. ``params``/``footage``: inputs (Snakemake fills them)."""
+    ``max_width`` of its range. ``reoptimise_evals``: 0 (the default) holds the other parameters at
+    the estimate (a slice); > 0 re-optimises them at every grid point with that many annealing
+    evaluations (a profile proper: a parameter another can make up for shows flat;
+    :mod:`vidsim.clothfit.profile`), logged to ``evals.jsonl`` so a killed stage resumes.
+    ``params``/``footage``: inputs (Snakemake fills them)."""
 
     points: int = 7
     tol: float = 0.05
     max_width: float = 0.5
+    reoptimise_evals: int = 0
+    seed: int = 0
     params: str = ""
     footage: list[str] = field(default_factory=list)
 
