@@ -93,6 +93,10 @@ def test_twin_select_profile_score_and_method_comparison(study):
         lo, hi = p["interval"]
         assert lo <= p["estimate"] <= hi and 0 <= p["width_fraction"] <= 1
     assert pdoc["kind"] == "slice" and not (prof / "evals.jsonl").exists()
+    # the loss's roughness measured at the estimate (8 points by default) only widens "as good"
+    assert pdoc["roughness_points"] == 8 and pdoc["roughness_sd"] > 0
+    e_hat = next(iter(pdoc["profiles"].values()))["error_at_estimate"]
+    assert pdoc["tol_effective"] == pytest.approx(max(pdoc["tol"], 2.0 * pdoc["roughness_sd"] / e_hat), rel=1e-12)
     # a profile proper (the other parameter re-optimised at each point): never above the slice,
     # its evaluations logged, and a rerun (a killed stage restarted) replays them to the same result
     prof2 = res / "cloth" / "profile_reopt" / "twin"

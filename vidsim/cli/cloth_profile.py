@@ -44,6 +44,10 @@ def run(cfg: DictConfig) -> None:
     reopt = int(pc.get("reoptimise_evals", 0))
     if reopt < 0:
         raise ClothStageError(f"cloth.profile.reoptimise_evals must be >= 0 (0: a slice), got {reopt}")
+    rough = int(pc.get("roughness_points", 0))
+    if rough < 0 or not float(pc.get("roughness_z", 2.0)) >= 0:
+        raise ClothStageError(f"cloth.profile.roughness_points and roughness_z must be >= 0, got {rough}, "
+                              f"{pc.get('roughness_z')}")
     n_points = obj.space.dim * int(pc.points)
     prog = Progress(n_points, "profile_cloth" + (f" (others re-optimised, {reopt} evaluations per point)"
                                                  if reopt else ""), enabled=cfg.log.progress)
@@ -53,18 +57,22 @@ def run(cfg: DictConfig) -> None:
 
     # a profile's evaluations are logged (keyed by the objective's fingerprint): a killed stage resumes
     with (EvalCache(obj, out / "evals.jsonl", context=obj.fingerprint()) if reopt else nullcontext()) as f_unit:
+        rinfo: dict = {}
         profs = profile_parameters(obj, theta, points=int(pc.points), tol=float(pc.tol), max_width=float(pc.max_width),
                                    on_eval=lambda n, v, e: prog.update(note=f"{n} = {v:.3g}: E = {e:.4g}"),
-                                   reoptimise_evals=reopt, seed=int(pc.get("seed", 0)), f_unit=f_unit)
+                                   reoptimise_evals=reopt, seed=int(pc.get("seed", 0)), f_unit=f_unit,
+                                   roughness_points=rough, roughness_z=float(pc.get("roughness_z", 2.0)), info=rinfo)
     doc = {"params": str(pc.params), "footage": list(pc.footage), "tol": float(pc.tol),
+           "roughness_points": rough, "roughness_sd": rinfo["roughness_sd"], "tol_effective": rinfo["tol_effective"],
            "max_width": float(pc.max_width), "kind": "profile" if reopt else "slice",
            "reoptimise_evals": reopt, "profiles": {p.name: p.to_dict() for p in profs},
            "not_determined": [p.name for p in profs if not p.determined]}
     write_text(out / "profiles.csv", "parameter,unit_position,value,error\n" + "".join(
         f"{p.name},{u:.4f},{v:.6g},{e:.6g}\n" for p in profs for u, v, e in zip(p.u, p.values, p.errors)))
-    _figure(profs, obj.space, float(pc.tol), out / "profiles.png", reopt)
+    _figure(profs, obj.space, rinfo["tol_effective"], out / "profiles.png", reopt)
     write_yaml(out / "profile.yaml", doc)
-    print(f"profile_cloth: not determined by the footage: {doc['not_determined'] or 'none'}", flush=True)
+    print(f"profile_cloth: roughness sd {rinfo['roughness_sd']:.3g} (as good: within {rinfo['tol_effective']:.1%} of "
+          f"the estimate); not determined by the footage: {doc['not_determined'] or 'none'}", flush=True)
 
 
 def _figure(profs, space, tol: float, path: Path, reopt: int = 0) -> None:

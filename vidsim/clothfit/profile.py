@@ -9,7 +9,9 @@ the least error with the parameter held there), by the project's annealing, warm
 neighbouring grid point's optimum as the walk moves out from the estimate; the profile is never
 above the slice (the slice's value is kept where the search finds nothing better). The
 *indifference interval* is where the profile stays within ``tol`` (relative) of the error at the
-estimate; a parameter whose interval covers more than ``max_width`` of its range has a flat
+estimate, or within ``roughness_z`` standard deviations of the loss's measured roughness where that
+is wider (a chaotic loss moves by several per cent under changes of 0.1 % of a parameter, and the
+estimate is the least of hundreds of its evaluations); a parameter whose interval covers more than ``max_width`` of its range has a flat
 profile: the footage does not determine it, and it is reported as such instead of as a number.
 Everything here reads footage errors only (never truth).
 """
@@ -22,7 +24,7 @@ import numpy as np
 
 from vidsim.optim import FAILED_SCORE
 
-__all__ = ["Profile", "profile_parameters", "indifference_interval"]
+__all__ = ["Profile", "profile_parameters", "indifference_interval", "roughness"]
 
 
 @dataclass
@@ -82,9 +84,26 @@ def indifference_interval(u: np.ndarray, e: np.ndarray, u_hat: float, e_hat: flo
     return walk(-1), walk(+1)
 
 
+def roughness(f_unit, u_hat: np.ndarray, e_hat: float, n: int, step: float = 1e-3, seed: int = 0) -> float:
+    """Standard deviation of the objective over the estimate and ``n`` points around it at
+    ``step`` (unit cube) along random sign vectors: how far a chaotic loss moves under changes
+    too small to mean anything (0 when ``n`` is 0)."""
+    if n <= 0:
+        return 0.0
+    rng = np.random.default_rng([int(seed), 7919])
+    vals = [float(e_hat)]
+    for _ in range(int(n)):
+        u = np.clip(u_hat + step * rng.choice([-1.0, 1.0], size=u_hat.size), 0.0, 1.0)
+        v = float(f_unit(u))
+        if v < FAILED_SCORE:
+            vals.append(v)
+    return float(np.std(vals, ddof=1)) if len(vals) > 1 else 0.0
+
+
 def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: float = 0.05,
                        max_width: float = 0.5, on_eval=None, reoptimise_evals: int = 0, seed: int = 0,
-                       f_unit=None) -> list[Profile]:
+                       f_unit=None, roughness_points: int = 0, roughness_z: float = 2.0,
+                       info: dict | None = None) -> list[Profile]:
     """Profiles of every estimated parameter around ``theta_hat``.
 
     Args:
@@ -101,6 +120,12 @@ def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: f
         seed: the annealing's seed.
         f_unit: the objective on the unit cube (e.g. an :class:`~vidsim.optim.cache.EvalCache`
             of ``objective``, so that a killed run resumes); None: ``objective.evaluate``.
+        roughness_points, roughness_z: with ``roughness_points`` > 0 the loss's roughness
+            (:func:`roughness`: its spread under unit-cube changes of 1e-3) is measured at the
+            estimate, and "as good" widens to ``roughness_z`` of its standard deviations where that
+            is more than ``tol``: the estimate is the least of many evaluations of a chaotic loss,
+            so a point within the roughness of it could as well have been the answer.
+        info: if given, filled with ``roughness_sd`` and ``tol_effective``.
     """
     from vidsim.optim.anneal import AnnealConfig, anneal
 
@@ -113,6 +138,10 @@ def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: f
         def f_unit(u: np.ndarray) -> float:
             return float(objective.evaluate(space.from_unit(u)).score)
     e_hat = float(objective.evaluate(th).score)  # the estimate itself (no unit-cube round trip)
+    sd = roughness(f_unit, u_hat, e_hat, int(roughness_points), seed=int(seed))
+    tol_eff = max(float(tol), float(roughness_z) * sd / e_hat) if e_hat > 0 else float(tol)
+    if info is not None:
+        info.update({"roughness_sd": sd, "tol_effective": tol_eff})
     out = []
     for d, name in enumerate(space.names):
         grid = np.unique(np.concatenate([np.linspace(0.0, 1.0, int(points)), [float(u_hat[d])]]))
@@ -148,7 +177,7 @@ def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: f
                     on_eval(name, float(space.from_unit(slice_u)[d]), errs[k])
         vals = np.array([space.from_unit(np.where(np.arange(space.dim) == d, g, u_hat))[d] for g in grid])
         e_use = np.where(errs >= FAILED_SCORE, np.inf, errs)
-        lo, hi = indifference_interval(grid, e_use, float(u_hat[d]), e_hat, tol)
+        lo, hi = indifference_interval(grid, e_use, float(u_hat[d]), e_hat, tol_eff)
         vlo = float(space.from_unit(np.where(np.arange(space.dim) == d, lo, u_hat))[d])
         vhi = float(space.from_unit(np.where(np.arange(space.dim) == d, hi, u_hat))[d])
         out.append(Profile(name, grid, vals, errs, float(u_hat[d]), e_hat, (lo, hi), (vlo, vhi), hi - lo,

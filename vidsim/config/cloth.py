@@ -247,12 +247,17 @@ class ClothProfileConfig:
     the estimate (a slice); > 0 re-optimises them at every grid point with that many annealing
     evaluations (a profile proper: a parameter another can make up for shows flat;
     :mod:`vidsim.clothfit.profile`), logged to ``evals.jsonl`` so a killed stage resumes.
+    ``roughness_points`` (> 0; 8 by default, 0: off): the loss's roughness is measured at the
+    estimate with that many evaluations 1e-3 away (unit cube), and "as good" widens to
+    ``roughness_z`` of its standard deviations where that is more than ``tol``.
     ``params``/``footage``: inputs (Snakemake fills them)."""
 
     points: int = 7
     tol: float = 0.05
     max_width: float = 0.5
     reoptimise_evals: int = 0
+    roughness_points: int = 8
+    roughness_z: float = 2.0
     seed: int = 0
     params: str = ""
     footage: list[str] = field(default_factory=list)
