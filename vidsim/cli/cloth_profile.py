@@ -7,9 +7,11 @@ cloth.profile.footage=[results/footage/cloth_linen_exp1,results/footage/cloth_li
 Around the selected parameters, each estimated parameter is swept across its whole range with the
 others held (a slice; with ``cloth.profile.reoptimise_evals=N`` the others are re-optimised at each
 point, a profile proper, its evaluations logged to ``evals.jsonl`` for resuming), on the fitted
-trials together (E1 + E2, the selection's criterion); see :mod:`vidsim.clothfit.profile`. Writes ``profile.yaml`` (per parameter: estimate, ``determined``,
-indifference interval, its width as a fraction of the range), ``profiles.csv`` and
-``profiles.png`` (one panel per parameter; a flat profile is labelled "not determined").
+trials together (E1 + E2, the selection's criterion); see :mod:`vidsim.clothfit.profile`.
+Writes ``profile.yaml`` (per parameter: estimate, ``determined``, indifference interval, its
+width as a fraction of the range; the loss's measured roughness and the tolerance it gave),
+``profiles.csv`` and ``profiles.png`` (one panel per parameter; a flat profile is labelled
+"not determined").
 """
 
 from __future__ import annotations
@@ -102,7 +104,8 @@ def _figure(profs, space, tol: float, path: Path, reopt: int = 0) -> None:
         ax.set_axis_off()
     kind = (f"profiles, the others re-optimised ({reopt} evaluations per point)" if reopt
             else "slices, the others held at the estimate")
-    fig.suptitle(f"error {kind}\n(grey: within {tol:.0%} of the estimate; green: indifference interval)", fontsize=8)
+    fig.suptitle(f"error {kind}\n(grey: as good as the estimate, within {tol:.1%}, the larger of the tolerance "
+                 f"and the roughness band; green: indifference interval)", fontsize=8)
     save_figure(fig, path)
 
 

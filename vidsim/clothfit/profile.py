@@ -11,8 +11,8 @@ above the slice (the slice's value is kept where the search finds nothing better
 *indifference interval* is where the profile stays within ``tol`` (relative) of the error at the
 estimate, or within ``roughness_z`` standard deviations of the loss's measured roughness where that
 is wider (a chaotic loss moves by several per cent under changes of 0.1 % of a parameter, and the
-estimate is the least of hundreds of its evaluations); a parameter whose interval covers more than ``max_width`` of its range has a flat
-profile: the footage does not determine it, and it is reported as such instead of as a number.
+estimate is the least of hundreds of its evaluations); a parameter whose interval covers more
+than ``max_width`` of its range has a flat profile: the footage does not determine it, and it is reported as such instead of as a number.
 Everything here reads footage errors only (never truth).
 """
 
