@@ -13,13 +13,16 @@ file's ``estimated`` when it lists them, else ``cloth.fit.estimate`` (empty: eve
 ``cloth.fit.space``, as ``fit_cloth`` reads it). The diagnosis refits those on
 the training frames, films a twin of the fit for the noise floor, screens the cloth library
 (``gap.cloth.diagnose.*``: :class:`vidsim.gap.cloth_diagnose.ClothDiagnoseConfig`), refits the best
-candidates and judges them on held-out frames. Writes ``diagnosis.json`` (verdict, named effects,
+candidates and judges them on held-out frames; by default (``gap.cloth.diagnose.region: split``)
+twice, the frame-timing, imaging and grip candidates also on the pixels near the gripped corners,
+whose outline follows the measured corner paths. Writes ``diagnosis.json`` (verdict, named effects,
 held-out gap before/after, floor, screen, refits, where: per phase, part, region and metric term),
 ``diagnosis.png`` and ``diagnosis.rrd``; all or nothing (a temporary folder renamed at the end).
 
 What it finds on the study's MuJoCo fabrics is in docs/gap.md ("Diagnosing the cloth study's
-fits"); on the withheld-effect twin cases (``gap_cloth_suite``) the blind cloth diagnosis names one
-withheld effect of eight, so read its verdicts with that record in mind.
+fits"); on the withheld-effect twin cases (``gap_cloth_suite``) the blind cloth diagnosis names
+three withheld effects of ten (time offset, time jitter, grip slip; none of the dynamics effects
+wind, gravity tilt, damping, anisotropic stretch), so read its verdicts with that record in mind.
 """
 
 from __future__ import annotations
@@ -100,7 +103,10 @@ def run(cfg: DictConfig) -> None:
                                 f.theta, f.mask)
     except ClothGapError as e:
         raise ClothStageError(f"{fo}: {e}") from e
-    prog = Progress(6 + dcfg.top_k + int(dcfg.pairs), "diagnose_cloth steps", enabled=cfg.log.progress)
+    # steps of one pass (a split diagnosis runs two: near the grips, on the whole outline); an
+    # estimate, as the second selection step and the joint pairs run only when needed
+    n_pass = 2 if dcfg.region == "split" else 1
+    prog = Progress(n_pass * (6 + dcfg.top_k + int(dcfg.pairs)), "diagnose_cloth steps", enabled=cfg.log.progress)
     print(f"diagnose_cloth {fo.name}: {f.sil.shape[0]} frames (frame stride {stride}), {mc.resolution}x"
           f"{mc.resolution} model, base {estimated}", file=sys.stderr, flush=True)
     try:

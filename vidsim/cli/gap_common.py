@@ -53,10 +53,13 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: 
     ax[0].plot(fr, d.gap_per_frame, "k.-", label="base model (refit on training frames)")
     ax[0].plot(fr[d.test], d.gap_per_frame[d.test], "ko", mfc="none", ms=8, label="held-out frames")
     ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label=floor_label)
-    for i in range(min(len(d.named), 2)):
-        name = "+".join(d.named[: i + 1])
-        g = np.asarray(d.refits[name]["gap_per_frame_after_px"])
-        ax[0].plot(fr, g, ".-", label=f"+ {name}")
+    keys = d.named_refit_keys() if hasattr(d, "named_refit_keys") else ["+".join(d.named[: i + 1]) for i in range(len(d.named))]
+    region = d.extra.get("primary_region") if hasattr(d, "extra") else None
+    for name in keys[:2]:
+        r = d.refits[name]
+        if region is not None and r.get("region") != region:
+            continue  # judged on another pass's pixels (a split cloth diagnosis): another scale
+        ax[0].plot(fr, np.asarray(r["gap_per_frame_after_px"]), ".-", label=f"+ {name}")
     ax[0].set_xlabel("frame")
     ax[0].set_ylabel("mismatch, full-res pixels")
     ax[0].set_title(f"where: gap per frame -- {d.verdict}", fontsize=9)
@@ -89,7 +92,7 @@ def log_diagnosis(lg: Any, d: RigidDiagnosis, masks: np.ndarray, prefix: str = "
         if i in floor:
             lg.scalar(f"{prefix}metric/noise_floor_px", float(floor[i]))
         for name, g in after.items():
-            lg.scalar(f"{prefix}metric/gap_after_{name}_px", float(g[i]))
+            lg.scalar(f"{prefix}metric/gap_after_{name.replace(':', '_')}_px", float(g[i]))
     lg.set_frame(int(d.frames[-1]))
     lg.image(f"{prefix}gap/heatmap", _heat_rgb(d.signed_heatmap))
     lg.text(f"{prefix}gap/verdict", d.verdict)

@@ -402,15 +402,16 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
     truths = true_strengths(truth, scene)
     rec = {}
     for lbl in labels:
-        key = "+".join(named[: named.index(lbl) + 1]) if lbl in named else lbl
-        r = diag.refits.get(key)
+        key = diag.refit_key(lbl)
+        r = diag.refits.get(key) if key is not None else None
         if r is None:
             continue
         out.setdefault("closure", {})[lbl] = float(r.get("closure_of_remaining", r["heldout_closure"]))
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
         # effects named jointly were refitted together: their strengths come from that refit
-        joint = diag.refits.get("+".join(named)) if named else None
-        if joint is not None and joint.get("named_jointly") and lbl in joint.get("params", {}):
+        joint = next((diag.refits[k] for k in diag.named_refit_keys()
+                      if diag.refits[k].get("named_jointly") and lbl in diag.refits[k].get("params", {})), None)
+        if joint is not None:
             r = joint
         if lbl in truths and lbl in r["params"]:
             pe = r["params"][lbl]
