@@ -301,6 +301,8 @@ def test_region_settings_are_checked():
         ClothDiagnoseConfig(region="split", residual="moments").validate()
     with pytest.raises(cloth_diagnose.ClothGapError, match="grip_radius_px"):
         ClothDiagnoseConfig(grip_radius_px=0.5).validate()
+    with pytest.raises(cloth_diagnose.ClothGapError, match="polish_nfev"):
+        ClothDiagnoseConfig(polish_nfev=-1).validate()
 
 
 @pytest.mark.slow
@@ -316,3 +318,7 @@ def test_withheld_time_offset_is_named_near_the_grips_and_its_strength_recovered
     assert score["correct"] and score["closure"]["time_offset"] >= 0.5
     assert score["recovery"]["time_offset"]["rel_error"] <= 0.3
     assert all(r["region"] == "grips" for r in diag.refits.values())
+    # the named effect's refit was continued from where the judging refit stopped (polish_nfev)
+    named = diag.refits[diag.named_refit_keys()[0]]
+    assert named["nfev"] > named["before_polish"]["nfev"]
+    assert score["closure"]["time_offset"] == named["closure_of_remaining"]
