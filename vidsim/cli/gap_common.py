@@ -67,7 +67,8 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: 
     items = sorted(((k, v) for k, v in d.screen.items() if "rank" in v), key=lambda kv: kv[1]["rank"])
     names = [k for k, _ in items]
     vals = [max(v["fraction"], 0.0) for _, v in items]
-    colors = ["tab:green" if k in d.named else ("tab:orange" if k in d.refits else "tab:gray") for k in names]
+    refitted = {key.split(":", 1)[-1] for key in d.refits}  # a split cloth diagnosis prefixes its region
+    colors = ["tab:green" if k in d.named else ("tab:orange" if k in refitted else "tab:gray") for k in names]
     ax[1].barh(names[::-1], vals[::-1], color=colors[::-1])
     ax[1].set_xlabel("score-test screen: first-order share of the residual")
     ax[1].set_title("which: green named, orange refitted", fontsize=9)

@@ -812,8 +812,9 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
     pixels near the gripped corners, the whole library on the whole outline, each with its own base
     refit, floor, screen and naming rule. The result lists the grips pass's names first, then the
     outline pass's that are not already listed; its gap, floor and held-out frames are those of the pass that named first (the outline
-    pass when neither names), the "where" section is the outline pass's, screen and refit entries
-    carry the ``region`` they were judged on, and ``passes`` keeps both passes' verdicts and gaps.
+    pass when neither names), and so are its screen and its other details (base parameters, floor,
+    camera part); the "where" section is the outline pass's, refit keys and entries carry the
+    ``region`` they were judged on, and ``passes`` keeps both passes' verdicts, gaps and screens.
 
     Args:
         trial: the footage as the estimator reads it.
@@ -871,19 +872,22 @@ def combine_passes(passes: dict[str, ClothDiagnosis]) -> ClothDiagnosis:
         verdict = "explained by " + ", ".join(f"{n} ({k.split(':')[0]})" for n, k in zip(named, keys))
     else:
         verdict = "none of the candidates explains the gap" if gap_any else "no gap beyond the noise floor"
-    screen = {k: v for r in order for k, v in passes[r].screen.items()}
+    # both passes screen the grip candidates: the result's screen is the primary pass's, each
+    # pass's own (and its conditional screens) are under passes
     refits = {f"{r}:{k}": v for r in order for k, v in passes[r].refits.items()}
     summary = {r: {"verdict": p.verdict, "named": list(p.named), "heldout_before_px": float(p.gap_per_frame[p.test].mean()),
+                   "screen": p.screen, "conditional_screens": p.extra.get("conditional_screens", {}),
+                   "joint_pairs": p.extra.get("joint_pairs", {}),
                    "noise_floor_heldout_px": float(p.floor_test.mean()), "gap_present": bool(p.extra.get("gap_present")),
                    "heldout_excess_px": p.extra.get("heldout_excess_px"), "candidates": sorted(p.screen),
                    "base_params": p.extra.get("base_params"), "seconds": p.seconds,
                    "gap_per_frame_px": p.gap_per_frame.tolist(), "noise_floor_per_frame_px": p.floor_per_frame.tolist()}
                for r, p in passes.items()}
-    extra = {**outline.extra, "gap_present": bool(gap_any), "region": "split",
+    extra = {**primary.extra, "gap_present": bool(gap_any), "region": "split",
              "primary_region": next(r for r in order if passes[r] is primary), "named_refit_keys": keys,
              "heldout_excess_px": primary.extra.get("heldout_excess_px"), "passes": summary}
     return ClothDiagnosis(named, verdict, primary.frames, primary.train, primary.test, primary.gap_per_frame,
-                          primary.floor_per_frame, screen, refits, outline.where, outline.signed_heatmap,
+                          primary.floor_per_frame, primary.screen, refits, outline.where, outline.signed_heatmap,
                           primary.theta_base, float(sum(p.seconds for p in passes.values())),
                           int(sum(p.n_sims for p in passes.values())), extra)
 

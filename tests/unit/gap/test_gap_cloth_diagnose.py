@@ -268,6 +268,9 @@ def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_
     # gap and floor are those of the pass that named first; "where" is the outline's
     assert d.gap_per_frame[0] == 50.0 and d.extra["primary_region"] == "grips"
     assert d.where == {"where": "outline"} and set(d.extra["passes"]) == {"grips", "outline"}
+    # the screen is the primary pass's; each pass keeps its own (both screen the grip candidates)
+    assert d.screen is grips.screen
+    assert d.extra["passes"]["outline"]["screen"] is outline.screen
     json.dumps(d.to_dict())
     # the report's figure draws the refit curves of the primary pass only (the other counts other pixels)
     from vidsim.cli.gap_common import plot_diagnosis
