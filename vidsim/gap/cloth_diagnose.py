@@ -645,6 +645,22 @@ def global_search(prob: Problem, theta0: np.ndarray, n_evals: int, width: float 
     return (theta(best_u), n) if best_c < c0 else (theta0, n)
 
 
+def refit_free_mask(m: ClothGapModel, effects: tuple[str, ...], timed: np.ndarray, hold_dynamics: bool
+                    ) -> np.ndarray | None:
+    """Which parameters a candidate's refit moves (None: all). Per-frame time errors only for the
+    frames whose capture time the footage can tell (``timed``); with ``hold_dynamics`` and only
+    imaging or timing effects, not the base's dynamics parameters (the motion is re-rendered, not
+    re-simulated): the effects and the outline offset move."""
+    free = None
+    if "time_jitter" in effects:
+        free = np.ones(m.n_params, bool)
+        free[m.slices["time_jitter"]] = timed
+    if hold_dynamics and all(CLOTH_EFFECTS[e].kind != "dynamics" for e in effects):
+        free = np.ones(m.n_params, bool) if free is None else free
+        free[: m.n_est] = False
+    return free
+
+
 def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 8, free: np.ndarray | None = None
           ) -> tuple[np.ndarray, dict]:
     """Trust-region least squares of the parameters ``free`` (default all) on ``prob.frames``.
@@ -1041,15 +1057,7 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
             th0, n_starts = effect_start(pe, th0, effects[-1],
                                          [] if effects[-1] == "time_jitter" else cfg.effect_starts)
             th0, _ = global_search(pe, th0, cfg.global_evals, cfg.global_width, cfg.seed)
-        free = None
-        if "time_jitter" in effects:
-            free = np.ones(m.n_params, bool)
-            free[m.slices["time_jitter"]] = timed
-        if cfg.hold_dynamics and all(CLOTH_EFFECTS[e].kind != "dynamics" for e in effects):
-            # an imaging or timing candidate re-renders the same motion: only it and the outline
-            # offset move
-            free = np.ones(m.n_params, bool) if free is None else free
-            free[: m.n_est] = False
+        free = refit_free_mask(m, effects, timed, cfg.hold_dynamics)
         n_fev = cfg.max_nfev if nfev is None else int(nfev)
         th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, n_fev, free), cfg.blur_thresholds)
         n_sims[0] += m.n_sims

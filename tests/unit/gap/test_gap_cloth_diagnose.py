@@ -325,3 +325,30 @@ def test_withheld_time_offset_is_named_near_the_grips_and_its_strength_recovered
     named = diag.refits[diag.named_refit_keys()[0]]
     assert named["nfev"] > named["before_polish"]["nfev"]
     assert score["closure"]["time_offset"] == named["closure_of_remaining"]
+
+
+def test_refit_free_mask_holds_the_dynamics_only_for_imaging_and_timing_effects():
+    from vidsim.cloth import mid_range_params
+    from vidsim.gap.cloth_diagnose import refit_free_mask
+    from vidsim.gap.cloth_model import ClothGapModel, ClothSetup
+    from vidsim.reality.cloth import corner_paths, swatch_motion
+    from vidsim.video.camera import PinholeCamera, intrinsics, look_at
+
+    R, t = look_at(np.array([0.0, -1.6, 0.9]), np.array([0.0, 0.0, 0.85]), np.array([0.0, 0.0, 1.0]))
+    cam = PinholeCamera(intrinsics(560.0, None, 159.5, 119.5), R, t, 320, 240, np.zeros(5))
+    times = np.arange(10) / 30.0
+    setup = ClothSetup(times, corner_paths(swatch_motion("exp1"), times), np.arange(0, 10, 2), cam, 0.3, 0.2,
+                       resolution=6, settle_s=0.3)
+    p = mid_range_params(density=0.2)
+    timed = np.array([False, True, True, True, True])
+    lens = ClothGapModel(setup, p, ["bend", "stretch"], ("lens_k1",), scale=0.5)
+    assert refit_free_mask(lens, ("lens_k1",), timed, False) is None
+    free = refit_free_mask(lens, ("lens_k1",), timed, True)
+    assert free.tolist() == [False, False, True, True]  # bend, stretch held; outline offset, k1 move
+    wind = ClothGapModel(setup, p, ["bend", "stretch"], ("lens_k1", "wind"), scale=0.5)
+    assert refit_free_mask(wind, ("lens_k1", "wind"), timed, True) is None  # a dynamics effect re-simulates
+    jit = ClothGapModel(setup, p, ["bend", "stretch"], ("time_jitter",), scale=0.5)
+    free = refit_free_mask(jit, ("time_jitter",), timed, True)
+    assert free[:2].tolist() == [False, False] and free[2]
+    assert free[jit.slices["time_jitter"]].tolist() == timed.tolist()
+    assert refit_free_mask(jit, ("time_jitter",), timed, False)[:3].all()
