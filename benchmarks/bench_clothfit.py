@@ -34,6 +34,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--resolution", type=int, default=20)
     ap.add_argument("--frames", type=int, default=50)
+    ap.add_argument("--multirate", default="1",
+                    help="cloth.model.multirate: bending kicked once per that many steps, or 'auto'")
     a = ap.parse_args()
     cv2.setNumThreads(1)
     cfg = OmegaConf.structured(ClothConfig())
@@ -46,14 +48,15 @@ def main() -> None:
     fs = FeatureSettings()
     feat = extract_features(frames, np.arange(5), fs)
     tr = Trial("linen/exp1", feat, run.times, run.corner_paths_measured, cam, proj, 0.3, 0.2)
-    obj = ClothObjective([tr], space_from_config(dict(cfg.fit.space)), model=ModelSettings(resolution=a.resolution),
+    obj = ClothObjective([tr], space_from_config(dict(cfg.fit.space)),
+                         model=ModelSettings(resolution=a.resolution, multirate=str(a.multirate)),
                          features=fs)
     sets = {"stiff (linen-like)": ClothParams(stretch=3000, shear=500, bend=4e-5),
             "mid": ClothParams(stretch=300, shear=50, bend=1e-5),
             "soft": ClothParams(stretch=30, shear=5, bend=4e-7)}
     obj.evaluate(obj.theta_of(sets["mid"]))  # numba compile / cache load
     print(f"cloth objective: {a.frames} frames, {a.resolution}x{a.resolution} swatch, {cam.width}x{cam.height}, "
-          f"median of {a.repeat} (wall s, and CPU s of the whole evaluation)")
+          f"multirate {a.multirate}, median of {a.repeat} (wall s, and CPU s of the whole evaluation)")
     for name, p in sets.items():
         rows = []
         for _ in range(a.repeat):

@@ -7,6 +7,9 @@
   evaluation per step. Symplectic, so it adds no artificial damping to undamped
   oscillations; its only constraint is the stability limit h < 2/omega_max.
   Velocity-dependent forces (damping, drag) use the half-step velocity (explicit).
+  Optionally multirate (impulse / r-RESPA, Tuckerman, Berne & Martyna 1992): the bending
+  forces, whose modes are far slower than stretch's on a stiff fabric, kick the velocities
+  once per ``r`` steps.
 
 Both call ``_accel`` which evaluates all forces at (t, x, v). Driven vertices take the
 driver's position/velocity at every evaluation and the driver's acceleration as their
@@ -146,7 +149,8 @@ def _accel(
     triangle_forces(x, v, tris, coef, area, P[P_STRETCH], P[P_STRETCH_V], P[P_SHEAR], P[P_KDS], P[P_KDSH],
                     P[P_KT], P[P_KN], P[P_KF], wind, tnorm, f)
     if P[P_BENDQ] > 0:
-        bend_forces_quadratic(x, v, edges, bquad, P[P_BEND], P[P_KDB], f)
+        if P[P_BEND] != 0.0 or P[P_KDB] != 0.0:
+            bend_forces_quadratic(x, v, edges, bquad, P[P_BEND], P[P_KDB], f)
     else:
         bend_forces_fused(x, v, edges, etris, tnorm, bcoef, brest, P[P_BEND], P[P_KDB], f)
     collider_forces(t, x, vert_area, ctimes, sc, sr, ca, cb, cr, P[P_COLK], P[P_COLH], f)
@@ -187,6 +191,30 @@ def _accel(
         for c in range(3):
             acc[i, c] = dwork[2, d, c]
     return pairs, epairs
+
+
+@njit(cache=True)
+def _bend_accel(x: np.ndarray, v: np.ndarray, acc_s: np.ndarray, fs: np.ndarray, model: tuple, P: np.ndarray,
+                didx: np.ndarray) -> None:
+    """Accelerations of the bending forces alone (the multirate scheme's slow part) into ``acc_s``;
+    zero on the driven rows. The dihedral kernel reuses the triangle normals that the last
+    :func:`_accel` left in the model at the same ``x``."""
+    tris, coef, area, edges, bcoef, brest, mass, vert_area, g, wind, uedges, vshare, eshare, etris, tnorm, bquad, inv_mass = model
+    fs[:] = 0.0
+    if P[P_BENDQ] > 0:
+        bend_forces_quadratic(x, v, edges, bquad, P[P_BEND], P[P_KDB], fs)
+    else:
+        bend_forces_fused(x, v, edges, etris, tnorm, bcoef, brest, P[P_BEND], P[P_KDB], fs)
+    for i in range(x.shape[0]):
+        im = inv_mass[i]
+        acc_s[i, 0] = fs[i, 0] * im
+        acc_s[i, 1] = fs[i, 1] * im
+        acc_s[i, 2] = fs[i, 2] * im
+    for d in range(didx.shape[0]):
+        i = didx[d]
+        acc_s[i, 0] = 0.0
+        acc_s[i, 1] = 0.0
+        acc_s[i, 2] = 0.0
 
 
 @njit(cache=True)
@@ -378,7 +406,13 @@ def _symplectic_loop(
     h_max: float,
     max_steps: int,
     vmax: float,
+    r: int,
 ) -> tuple:
+    """Velocity Verlet at steps of at most ``h_max``; with ``r`` > 1 the multirate (impulse, r-RESPA)
+    form: the bending forces are applied as half kicks at both ends of an outer step of ``r``
+    inner steps, inside which every other force is integrated by velocity Verlet (the inner
+    evaluations use a copy of ``P`` with the bending stiffness and damping zeroed). ``r`` = 1 is
+    plain velocity Verlet, operation for operation."""
     N = x0.shape[0]
     T = frame_times.shape[0]
     out = np.full((T, N, 3), np.nan)
@@ -389,12 +423,19 @@ def _symplectic_loop(
     v = v0.copy()
     acc = np.zeros((N, 3))
     f = np.zeros((N, 3))
+    acc_s = np.zeros((N, 3))
     xref = x.copy()
     pairs = -np.ones((1, 2), dtype=np.int64)
     epairs = np.zeros((0, 2), dtype=np.int64)
     t = t0
+    Pf = P.copy()
+    if r > 1:
+        Pf[P_BEND] = 0.0
+        Pf[P_KDB] = 0.0
     _set_driven(t, x, v, drv, dwork)
-    pairs, epairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, epairs, xref)
+    pairs, epairs = _accel(t, x, v, acc, f, model, Pf, drv, dwork, col, pairs, epairs, xref)
+    if r > 1:
+        _bend_accel(x, v, acc_s, f, model, P, drv[0])
     steps = 0
     status = 0
     fi = 0
@@ -404,32 +445,45 @@ def _symplectic_loop(
         fi += 1
     while fi < T:
         target = frame_times[fi]
-        n_sub = int(math.ceil((target - t) / h_max - 1e-9))
-        n_sub = max(n_sub, 1)
-        h = (target - t) / n_sub
-        for s in range(n_sub):
-            if steps >= max_steps:
-                status = 4
+        n_out = int(math.ceil((target - t) / (h_max * r) - 1e-9))
+        n_out = max(n_out, 1)
+        H = (target - t) / n_out
+        h = H / r
+        for so in range(n_out):
+            if r > 1:
+                for i in range(N):
+                    for c in range(3):
+                        v[i, c] += 0.5 * H * acc_s[i, c]
+            for s in range(r):
+                if steps >= max_steps:
+                    status = 4
+                    break
+                # velocity Verlet (kick-drift-kick), one force evaluation per step (FSAL)
+                for i in range(N):
+                    for c in range(3):
+                        v[i, c] += 0.5 * h * acc[i, c]
+                        x[i, c] += h * v[i, c]
+                t = target if (so == n_out - 1 and s == r - 1) else t + h
+                pairs, epairs = _accel(t, x, v, acc, f, model, Pf, drv, dwork, col, pairs, epairs, xref)
+                for i in range(N):
+                    for c in range(3):
+                        v[i, c] += 0.5 * h * acc[i, c]
+                _set_driven(t, x, v, drv, dwork)
+                steps += 1
+                # checked every step: a state that blows up overflows to inf within a few steps, and
+                # the next force evaluation then divides by an exact zero (numba raised
+                # ZeroDivisionError for shear = 2 N/m with driven corners, seen 2026-11-22)
+                st = _check(x, v, vmax)
+                if st != 0:
+                    status = st
+                    break
+            if status != 0:
                 break
-            # velocity Verlet (kick-drift-kick), one force evaluation per step (FSAL)
-            for i in range(N):
-                for c in range(3):
-                    v[i, c] += 0.5 * h * acc[i, c]
-                    x[i, c] += h * v[i, c]
-            t = target if s == n_sub - 1 else t + h
-            pairs, epairs = _accel(t, x, v, acc, f, model, P, drv, dwork, col, pairs, epairs, xref)
-            for i in range(N):
-                for c in range(3):
-                    v[i, c] += 0.5 * h * acc[i, c]
-            _set_driven(t, x, v, drv, dwork)
-            steps += 1
-            # checked every step: a state that blows up overflows to inf within a few steps, and
-            # the next force evaluation then divides by an exact zero (numba raised
-            # ZeroDivisionError for shear = 2 N/m with driven corners, seen 2026-11-22)
-            st = _check(x, v, vmax)
-            if st != 0:
-                status = st
-                break
+            if r > 1:
+                _bend_accel(x, v, acc_s, f, model, P, drv[0])
+                for i in range(N):
+                    for c in range(3):
+                        v[i, c] += 0.5 * H * acc_s[i, c]
         if status == 0:
             status = _check(x, v, vmax)
         if status != 0:

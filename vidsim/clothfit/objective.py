@@ -89,6 +89,20 @@ class Trial:
                      None if self.skirt is None else self.skirt.subset(idx))
 
 
+def multirate_setting(value: object) -> int | str:
+    """``cloth.model.multirate`` as :func:`vidsim.cloth.simulate` takes it: "auto" or a whole number >= 1."""
+    text = str(value).strip()
+    if text == "auto":
+        return "auto"
+    try:
+        r = int(text)
+    except ValueError:
+        r = 0
+    if r < 1 or str(r) != text:
+        raise ObjectiveError(f"cloth.model.multirate must be 'auto' or a whole number >= 1, got {value!r}")
+    return r
+
+
 @dataclass(frozen=True)
 class ModelSettings:
     """The estimator's simulator settings (see :class:`vidsim.config.cloth.ClothModelConfig`).
@@ -99,12 +113,15 @@ class ModelSettings:
     ``skirt_fold_amplitude`` > 0 [m]: a skirt trial's error is the mean over that many fold-seeded
     starts (:func:`vidsim.clothfit.rig.skirt_fold_starts`, seed ``skirt_fold_seed``); 0: one start
     in the exact cone. Defaults as ``cloth.skirt`` (:class:`vidsim.config.cloth.ClothSkirtConfig`).
+    ``multirate``: the "fast" scheme's bending kicks once per that many steps ("1": plain velocity
+    Verlet; "auto": from the ratio of stable steps), :func:`vidsim.cloth.simulate`'s ``multirate``.
     """
 
     resolution: int = 20
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
+    multirate: str = "1"
     skirt_rings: int = 8
     skirt_around: int = 24
     skirt_rest_bend: str = "cone"
@@ -168,6 +185,7 @@ class ClothObjective:
             raise ObjectiveError("objective needs at least one trial")
         if model.integrator not in ("fast", "rk45"):
             raise ObjectiveError(f"cloth.model.integrator must be 'fast' or 'rk45', got {model.integrator!r}")
+        self._multirate = multirate_setting(model.multirate)
         if int(model.skirt_fold_members) != model.skirt_fold_members or model.skirt_fold_members < 0:
             raise ObjectiveError(f"cloth.skirt.model_fold_members must be an integer >= 0, got {model.skirt_fold_members!r}")
         if not (np.isfinite(model.skirt_fold_amplitude) and model.skirt_fold_amplitude >= 0):
@@ -267,7 +285,7 @@ class ClothObjective:
                 t = time.perf_counter()
                 try:
                     res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
-                                   settle_bath=self.model.settle_bath, x0=x0)
+                                   settle_bath=self.model.settle_bath, x0=x0, multirate=self._multirate)
                 except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
                     timing["simulate"] += time.perf_counter() - t
                     out.ok, out.failure = False, f"{tr.name}{member}: simulator raised {type(e).__name__}: {e}"

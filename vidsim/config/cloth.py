@@ -153,12 +153,16 @@ class ClothModelConfig:
     ``resolution``: vertices per side of the swatch; ``settle_s``: rest time before frame 0
     (grips still); ``settle_bath``: viscous damping rate of that settle, 1/s (0 = off: the
     model starts the clip still swinging from its flat start); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
+    ``multirate``: the fast scheme's bending kicks once per that many steps ("1": plain velocity
+    Verlet; "auto": the factor from the ratio of the bending's and the whole model's stable steps;
+    :func:`vidsim.cloth.simulate`).
     """
 
     resolution: int = 20
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
+    multirate: str = "1"
     frame_stride: int = 1
     max_frames: int = 0
 

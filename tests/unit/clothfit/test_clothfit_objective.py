@@ -93,6 +93,10 @@ def test_bad_inputs_name_the_field(twin_trial):
     with pytest.raises(ObjectiveError, match="integrator"):
         ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
                        model=ModelSettings(integrator="euler"))
+    for bad in ("0", "2.5", "fast", "-1"):
+        with pytest.raises(ObjectiveError, match="cloth.model.multirate"):
+            ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
+                           model=ModelSettings(multirate=bad))
     with pytest.raises(ClothFilmError, match="corners0"):
         swatch_model_mesh(np.zeros((3, 3)), 10, 0.3)
     with pytest.raises(FeatureError, match="background_frames"):
