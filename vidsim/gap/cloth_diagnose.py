@@ -111,12 +111,11 @@ class ClothDiagnoseConfig:
             ``min_closure`` and beats each member alone by ``pair_min_gain`` (the rigid rule,
             :func:`vidsim.gap.rigid_diagnose.joint_pair_search`).
         blur_thresholds: segmentation thresholds tried in a refit with motion blur (the rigid
-            rule, :func:`vidsim.gap.rigid_diagnose.blur_threshold_refit`: the one with the least
-            training cost is kept); empty: the plain mean coverage over the exposure. Default
-            [0.2, 0.35, 0.5] since the blur's exposure window is free on both sides of the stamp
-            (3 Dec 2026, session 26; docs/gap.md, "Motion blur with an exposure the stamp does not centre"):
-            before, with a centred window, these thresholds (also in the screen then) did not name
-            the blur case and made the MuJoCo null case name time_offset.
+            rule, :func:`vidsim.gap.rigid_diagnose.blur_threshold_refit`); empty (the default):
+            the plain mean coverage over the exposure. Measured with [0.2, 0.35, 0.5] (and the
+            thresholded blur in the screen too): the cloth blur case was still not named, and the
+            screen's ranking moved so that the MuJoCo null case named time_offset (closure 0.53)
+            (docs/gap.md), so it is off in this domain.
         floor_resolution: vertices per side of the floor's twin of the fit (0: the model's own, so
             the floor is rendering, segmentation and noise; a finer mesh also counts the model's
             discretisation as irreducible, which is right for real fabric and wrong for a reality
@@ -203,7 +202,7 @@ class ClothDiagnoseConfig:
     pairs: bool = True
     joint_pairs: bool = True
     pair_min_gain: float = 0.2
-    blur_thresholds: list[float] = field(default_factory=lambda: [0.2, 0.35, 0.5])
+    blur_thresholds: list[float] = field(default_factory=list)
     floor_resolution: int = 0
     base_nfev: int = 25
     floor_blur_px: float = 0.6

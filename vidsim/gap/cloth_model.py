@@ -26,15 +26,10 @@ Dynamics (what the simulator is given)::
 Imaging and timing (the camera, not the motion; no re-simulation)::
 
     lens_k1         k1 (-)       radial distortion the calibration missed
-    motion_blur     (a, b) (s^2) the exposure's parts before and after the frame's time stamp,
-                                 squared: the silhouette is the mean over [t - sqrt(a), t + sqrt(b)]
-                                 (three samples). Cameras stamp a frame at the start, the middle
-                                 or the end of its exposure, and the footage does not say which,
-                                 so both parts are free; a = b is the centred exposure, b = 0 one
-                                 that ends at the stamp. The window's centre can move by at most
-                                 half its length, so a pure time offset stays time_offset's.
-                                 ``blur_threshold`` segments it instead (rigid_model.segmented_blur;
-                                 off by default here)
+    motion_blur     b  (s^2)     exposure^2: the silhouette is the mean over an exposure sqrt(b)
+                                 centred on the frame time (a one-sided exposure is this plus a
+                                 time offset of half of it); ``blur_threshold`` segments it
+                                 instead (rigid_model.segmented_blur; off by default here)
     rolling_shutter rs (s)       image row v is captured rs v / H after row 0
     time_offset     dt (s)       every frame is captured dt after the time the corner paths give
     time_rate       r  (-)       the frame clock runs fast: t -> t_first + (t - t_first)(1 + r)
@@ -79,7 +74,7 @@ from vidsim.gap.rigid_model import EffectSpec, segmented_blur
 from vidsim.video.camera import PinholeCamera
 
 __all__ = ["ClothGapError", "ClothEffectSpec", "CLOTH_EFFECTS", "DRAG_NAMES", "DAMPING_NAMES", "ClothSetup",
-           "ClothGapModel", "soft_coverage", "boundary_edges", "hermite", "tilt_gravity", "exposure_offsets"]
+           "ClothGapModel", "soft_coverage", "boundary_edges", "hermite", "tilt_gravity"]
 
 DRAG_NAMES = ("drag_linear", "drag_quad", "drag_degrade")
 DAMPING_NAMES = ("bend_damping", "stretch_damping", "shear_damping")
@@ -118,7 +113,7 @@ CLOTH_EFFECTS: dict[str, ClothEffectSpec] = {e.name: e for e in (
     ClothEffectSpec("grip_slip", 2, "dynamics", 0.005, "m", 0.0),
     ClothEffectSpec("anisotropic_stretch", 1, "dynamics", 0.3, "ln(warp/weft)", -ANISO_BOUND),
     ClothEffectSpec("lens_k1", 1, "imaging", 0.01, "-"),
-    ClothEffectSpec("motion_blur", 2, "imaging", 1e-4, "s^2", 0.0, disp_power=0.5),
+    ClothEffectSpec("motion_blur", 1, "imaging", 1e-4, "s^2", 0.0, disp_power=0.5),
     ClothEffectSpec("rolling_shutter", 1, "timing", 0.004, "s"),
     ClothEffectSpec("time_offset", 1, "timing", 0.005, "s"),
     ClothEffectSpec("time_rate", 1, "timing", 0.01, "-"),
@@ -215,20 +210,6 @@ def soft_coverage(uv: np.ndarray, tris: np.ndarray, H: int, W: int, ramp: float 
     bnd = boundary_edges(t) if boundary is None else np.ascontiguousarray(boundary, np.bool_)
     _soft_frame(np.ascontiguousarray(uv, float), t, bnd, int(H), int(W), float(ramp), float(bias), out)
     return np.minimum(out, 1.0)
-
-
-#: renders averaged over a blurred frame's exposure window (its two ends and its middle)
-BLUR_SAMPLES = 3
-
-
-def exposure_offsets(blur: np.ndarray) -> np.ndarray:
-    """Sample times of one frame's exposure relative to its time stamp, seconds, from the
-    motion_blur parameters (a, b): ``BLUR_SAMPLES`` points across [-sqrt(a), sqrt(b)], or just
-    the stamp (0) when both parts are zero."""
-    a, b = (max(float(v), 0.0) for v in np.asarray(blur, float)[:2])
-    if a == 0.0 and b == 0.0:
-        return np.zeros(1)
-    return np.linspace(-np.sqrt(a), np.sqrt(b), BLUR_SAMPLES)
 
 
 def hermite(grid_t: np.ndarray, P: np.ndarray, V: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -544,7 +525,8 @@ class ClothGapModel:
         if not ok:
             return [], False
         tc = self.capture_times(theta)[idx]
-        offs = exposure_offsets(self.get(theta, "motion_blur"))
+        b = float(self.get(theta, "motion_blur")[0])
+        offs = np.linspace(-0.5, 0.5, 3) * np.sqrt(max(b, 0.0)) if b > 0 else np.zeros(1)
         rs = float(self.get(theta, "rolling_shutter")[0])
         g = self.setup.times
         obs_k = self.setup.obs[idx]
@@ -594,8 +576,7 @@ class ClothGapModel:
     def _no_blur(self) -> np.ndarray:
         m = np.ones(self.n_params - self.n_base)
         if "motion_blur" in self.slices:
-            sl = self.slices["motion_blur"]
-            m[sl.start - self.n_base:sl.stop - self.n_base] = 0.0
+            m[self.slices["motion_blur"].start - self.n_base] = 0.0
         return m
 
     def render(self, theta: np.ndarray, frames: np.ndarray | None = None) -> tuple[np.ndarray, bool]:

@@ -378,8 +378,7 @@ def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float
         # estimate with the std over the frames it summarises)
         out["time_jitter"] = [float(np.std(_true_time_errors(truth, scene)))]
     if "motion_blur" in e:
-        # film_cloth's exposure ends at the frame's time: all of it before the stamp, none after
-        out["motion_blur"] = [float((float(e["motion_blur"].get("exposure", 0.5)) / scene.fps) ** 2), 0.0]
+        out["motion_blur"] = [float((float(e["motion_blur"].get("exposure", 0.5)) / scene.fps) ** 2)]
     return out
 
 

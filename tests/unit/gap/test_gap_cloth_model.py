@@ -19,7 +19,6 @@ from vidsim.gap.cloth_model import (
     ClothGapModel,
     ClothSetup,
     boundary_edges,
-    exposure_offsets,
     hermite,
     soft_coverage,
     tilt_gravity,
@@ -99,32 +98,6 @@ def test_every_effect_away_from_zero_changes_the_silhouettes(setup, params0, pla
         change = float(np.abs(img - img0).sum()) / img.shape[0]
         # lens_k1 at its scale (0.01) moves this small, central swatch by ~0.05 px: least of all
         assert change > 0.3, f"{name}: mean coverage change {change:.3g} px per frame"
-
-
-def test_exposure_window_before_and_after_the_stamp(setup, params0, plain):
-    """motion_blur's two parts place the exposure around the frame's stamp: an exposure e that ends
-    at the stamp, (e^2, 0), is the centred exposure ((e/2)^2, (e/2)^2) captured e/2 earlier, to the
-    last bit of the sample times and closely in the images."""
-    np.testing.assert_array_equal(exposure_offsets([0.0, 0.0]), [0.0])
-    np.testing.assert_allclose(exposure_offsets([0.02 ** 2, 0.0]), [-0.02, -0.01, 0.0], atol=1e-15)
-    np.testing.assert_allclose(exposure_offsets([0.01 ** 2, 0.01 ** 2]), [-0.01, 0.0, 0.01], atol=1e-15)
-    np.testing.assert_array_equal(exposure_offsets([-1e-6, 0.0]), [0.0])  # below the bound: off
-    e = 0.03
-    m = _model(setup, params0, plain, ["motion_blur", "time_offset"])
-    one_sided = m.theta0()
-    one_sided[m.slices["motion_blur"]] = [e * e, 0.0]
-    centred = m.theta0()
-    centred[m.slices["motion_blur"]] = [(e / 2) ** 2, (e / 2) ** 2]
-    centred[m.slices["time_offset"]] = [-e / 2]
-    a, ok_a = m.render(one_sided)
-    b, ok_b = m.render(centred)
-    assert ok_a and ok_b
-    np.testing.assert_allclose(a, b, atol=1e-9)
-    # and the one-sided window is not the centred one: the stamp's offset shows
-    no_offset = centred.copy()
-    no_offset[m.slices["time_offset"]] = 0.0
-    c, _ = m.render(no_offset)
-    assert float(np.abs(a - c).sum()) / a.shape[0] > 0.3
 
 
 def test_group_effects_free_only_what_the_fit_held_fixed(setup, params0, plain):
