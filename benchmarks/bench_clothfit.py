@@ -24,7 +24,7 @@ from vidsim.clothfit.features import FeatureSettings, extract_features
 from vidsim.clothfit.film import FilmSettings, film_cloth
 from vidsim.clothfit.objective import ClothObjective, ModelSettings, Trial, space_from_config
 from vidsim.config import camera_from_config, projector_from_config
-from vidsim.config.cloth import ClothConfig
+from vidsim.config.cloth import ClothConfig, ClothModelConfig
 from vidsim.reality.cloth import fabric_profile, simulate_swatch, swatch_motion
 from vidsim.render.projector import Projector
 
@@ -34,8 +34,9 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--resolution", type=int, default=20)
     ap.add_argument("--frames", type=int, default=50)
-    ap.add_argument("--multirate", default="1",
-                    help="cloth.model.multirate: bending kicked once per that many steps, or 'auto'")
+    ap.add_argument("--multirate", default=ClothModelConfig().multirate,
+                    help="cloth.model.multirate: bending kicked once per that many steps, or 'auto' "
+                         "(default: the config's)")
     a = ap.parse_args()
     cv2.setNumThreads(1)
     cfg = OmegaConf.structured(ClothConfig())

@@ -121,7 +121,7 @@ class ModelSettings:
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
-    multirate: str = "1"
+    multirate: str = "auto"
     skirt_rings: int = 8
     skirt_around: int = 24
     skirt_rest_bend: str = "cone"

@@ -154,15 +154,15 @@ class ClothModelConfig:
     (grips still); ``settle_bath``: viscous damping rate of that settle, 1/s (0 = off: the
     model starts the clip still swinging from its flat start); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
     ``multirate``: the fast scheme's bending kicks once per that many steps ("1": plain velocity
-    Verlet; "auto": the factor from the ratio of the bending's and the whole model's stable steps;
-    :func:`vidsim.cloth.simulate`).
+    Verlet; "auto", the default since 3 Dec 2026: the factor from the ratio of the bending's and the
+    whole model's stable steps; :func:`vidsim.cloth.simulate`, docs/cloth_parameters.md).
     """
 
     resolution: int = 20
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
-    multirate: str = "1"
+    multirate: str = "auto"
     frame_stride: int = 1
     max_frames: int = 0
 
