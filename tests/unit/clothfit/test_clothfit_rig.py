@@ -143,7 +143,8 @@ def test_skirt_error_is_the_mean_over_its_fold_seeded_members():
 
     from vidsim.clothfit.features import FeatureSettings, extract_features
     from vidsim.clothfit.film import FilmSettings, film_cloth
-    from vidsim.clothfit.objective import ClothObjective, ModelSettings, ObjectiveError, Trial, space_from_config
+    from vidsim.clothfit.objective import (ClothObjective, ModelSettings, ObjectiveError, Trial, multirate_setting,
+                                          space_from_config)
     from vidsim.config import camera_from_config, projector_from_config
     from vidsim.config.cloth import ClothConfig
     from vidsim.render.projector import Projector
@@ -179,7 +180,8 @@ def test_skirt_error_is_the_mean_over_its_fold_seeded_members():
     assert np.allclose(r2.e_silh[0], 0.5 * (ra.e_silh[0] + rb.e_silh[0]))
     assert np.allclose(r2.e_fold[0], 0.5 * (ra.e_fold[0] + rb.e_fold[0]))
     # keep=True returns the first member's motion (the side-by-side videos show it)
-    first = simulate(mesh, p, drv, t, integrator="fast", t0=t0, colliders=col, x0=two.starts[0][0])
+    first = simulate(mesh, p, drv, t, integrator="fast", t0=t0, colliders=col, x0=two.starts[0][0],
+                     multirate=multirate_setting(two.model.multirate))
     assert len(r2.positions) == 1 and np.array_equal(r2.positions[0], first.positions)
     assert objective(0).starts == [[None]]  # 0: the single start in the exact cone, as before
     with pytest.raises(ObjectiveError, match="cloth.skirt.model_fold_members"):
