@@ -4,10 +4,11 @@ damping, MuJoCo flex comparison, and cost growth with resolution.
 Usage::
 
     NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/bench_cloth_sim.py \
-        [speed force damping mujoco scaling resolution settle]
+        [speed force damping mujoco scaling resolution settle split]
 
-(no argument: all but ``resolution``, which takes ~5 CPU-minutes, and ``settle``, the gap
-suite's swatch at rest with and without the settle bath, docs/gap.md).
+(no argument: all but ``resolution``, which takes ~5 CPU-minutes, ``settle``, the gap
+suite's swatch at rest with and without the settle bath, docs/gap.md, and ``split``, the
+split damping against the explicit one at the damped corners the full fits visited).
 
 Case (issue 4): a 20x20-vertex swatch, 0.3 m, 0.2 kg/m^2, its two top corners waved
 (5 cm sideways at 1.5 Hz, 8 cm back and forth at 1 Hz, 3 cm up-down) from rest: the
@@ -455,6 +456,69 @@ def bench_settle() -> None:
               f"{d[0]:.3f} / {d[9]:.2f} / {d[18]:.2f} mm")
 
 
+#: two corners of the parameter space where the full study's slowest fits spent their time (the
+#: optima of satin exp1 and linen exp1 in the 4 Dec 2026 full run; densities 0.1 and 0.2 kg/m^2)
+DAMPED_CORNERS = {
+    "satin corner": dict(bend=6.57e-5, stretch=1632.0, shear=490.0, bend_damping=1e-6, stretch_damping=0.1,
+                         shear_damping=0.084, drag_linear=0.0023, drag_quad=1.45, drag_degrade=0.74, density=0.1),
+    "linen corner": dict(bend=1e-4, stretch=1362.0, shear=376.0, bend_damping=1e-6, stretch_damping=0.05,
+                         shear_damping=0.0046, drag_linear=0.0085, drag_quad=1.48, drag_degrade=0.52, density=0.2),
+}
+
+
+def bench_split() -> None:
+    """``damping="split"`` (the condition dampings as per-condition decays after each step) against
+    ``"explicit"``: the cost of the decay passes per element, and 50 frames of the waved 20x20 swatch
+    at mid-range parameters and at the two damped corners (multirate "auto" as in the fits): steps,
+    multirate factor, CPU time, and the distance to an explicit reference at an eighth of the step
+    over the first 10 frames (after that the swing is chaotic, docs/gap.md)."""
+    from vidsim.cloth.forces import bend_damping, color_order, membrane_damping, triangle_forces
+    from vidsim.cloth.simulate import _model
+
+    mesh = swatch(20, 20, SIZE, SIZE)
+    p = mid_range_params()
+    rng = np.random.default_rng(0)
+    x = mesh.rest_positions + 1e-3 * rng.standard_normal(mesh.rest_positions.shape)
+    v = 0.1 * rng.standard_normal(x.shape)
+    m = _model(mesh, p, np.zeros(3))
+    tris, coef, area, edges, bcoef, etris, tn, bquad, im = m[0], m[1], m[2], m[3], m[4], m[13], m[14], m[15], m[16]
+    f = np.zeros_like(x)
+    to, eo = color_order(tris, mesh.n_vertices), color_order(edges, mesh.n_vertices)
+    M, E = len(tris), len(edges)
+    reps = max(1, 20000 // M)
+
+    def tri():
+        for _ in range(reps):
+            triangle_forces(x, v, tris, coef, area, p.stretch, p.stretch, p.shear, p.stretch_damping, p.shear_damping,
+                            p.drag_linear, p.drag_quad, p.drag_degrade, np.zeros(3), tn, f)
+
+    def mem():
+        for _ in range(reps):
+            membrane_damping(x, v, tris, coef, area, 0.01, 0.01, im, 1e-4, False, to)
+
+    def bnd():
+        for _ in range(reps):
+            bend_damping(x, v, edges, etris, tn, bcoef, bquad, False, 1e-7, im, 1e-4, False, eo)
+
+    print(f"\n## split damping ({load()})")
+    print(f"decay passes at 20x20 (minimum over windows): membrane {1e9 * min_window(mem, reps)[0] / M:.0f} ns/triangle, "
+          f"bending {1e9 * min_window(bnd, reps)[0] / E:.0f} ns/edge; the triangle force kernel "
+          f"{1e9 * min_window(tri, reps)[0] / M:.0f} ns/triangle")
+    drv = wave(mesh)
+    print("| parameters | damping | mode used | step [ms] | multirate | steps | median CPU [s] | max distance to reference, frames 0-9 [mm] |")
+    print("|---|---|---|---|---|---|---|---|")
+    sets = {"mid-range": p, **{k: ClothParams(**kw) for k, kw in DAMPED_CORNERS.items()}}
+    for name, q in sets.items():
+        h = simulate(mesh, q, drv, TIMES[:10], integrator="fast").dt
+        ref = simulate(mesh, q, drv, TIMES[:10], integrator="fast", dt=h / 8)
+        for mode in ("explicit", "split", "auto"):
+            t, r = median_time(lambda: simulate(mesh, q, drv, TIMES, integrator="fast", multirate="auto", damping=mode), 3)
+            assert r.ok, r.failure
+            d = 1e3 * np.max(np.linalg.norm(r.positions[:10] - ref.positions, axis=-1))
+            print(f"| {name} | {mode} | {r.stats['damping']} | {1e3 * r.dt:.3f} | {r.stats['multirate']} | {r.steps} | "
+                  f"{LAST_CPU[0]:.3f} | {d:.3f} |")
+
+
 def main(argv: list[str]) -> None:
     which = set(argv) or {"speed", "force", "damping", "mujoco", "scaling"}
     print(f"cloth simulator benchmark; numba threads = {os.environ.get('NUMBA_NUM_THREADS')}")
@@ -471,6 +535,8 @@ def main(argv: list[str]) -> None:
         bench_resolution()
     if "settle" in which:
         bench_settle()
+    if "split" in which:
+        bench_split()
 
 
 if __name__ == "__main__":

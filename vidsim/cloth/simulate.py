@@ -221,7 +221,20 @@ MULTIRATE_FRACTION = 0.25
 MULTIRATE_MAX = 8
 
 
-def _fast_with_retry(t0, x0, v0, times, model, P, drv, col, h, max_steps, v_max, max_halvings, r=1):
+#: how the Baraff-Witkin condition dampings are integrated by the "fast" scheme
+DAMPING_MODES = ("explicit", "split", "auto")
+#: damping="auto" splits the dampings when that lengthens the stable step by more than this factor:
+#: a split step costs about 1.5x an explicit one (the membrane decay pass ~30 us on a 20x20 swatch
+#: against ~60 us for the forces; benchmarks/bench_cloth_sim.py split)
+SPLIT_GAIN = 1.5
+
+
+def _check_damping(damping: str) -> None:
+    if damping not in DAMPING_MODES:
+        raise ClothInputError(f"damping must be one of {DAMPING_MODES}, got {damping!r}")
+
+
+def _fast_with_retry(t0, x0, v0, times, model, P, drv, col, h, max_steps, v_max, max_halvings, r=1, split=False):
     """Velocity Verlet at step ``h``; when the state blows up, roll back a few frames and halve the step.
 
     The stable step is estimated once, at the initial state; a soft fabric that stretches far
@@ -232,13 +245,13 @@ def _fast_with_retry(t0, x0, v0, times, model, P, drv, col, h, max_steps, v_max,
     fixed ``dt``), recovers those runs; the smaller step is kept to the end. Deterministic.
 
     ``r``: the multirate factor (bending kicks once per ``r`` steps; 1: plain velocity Verlet),
-    kept through the halvings.
+    kept through the halvings. ``split``: the dampings as exact per-condition decays (``damping="split"``).
 
     Returns:
         ``(positions, velocities, frames_done, status, steps, 0, evaluations, halvings, final h)``.
     """
     out, outv, done, status, steps, rej, nev = _symplectic_loop(t0, x0, v0, times, model, P, drv, col, h,
-                                                                max_steps, v_max, r)
+                                                                max_steps, v_max, r, split)
     halvings = 0
     while status in (1, 2) and halvings < max_halvings and steps < max_steps:
         k = done - FAST_ROLLBACK_FRAMES
@@ -251,19 +264,20 @@ def _fast_with_retry(t0, x0, v0, times, model, P, drv, col, h, max_steps, v_max,
             tk, xk, vk = float(times[k]), out[k].copy(), outv[k].copy()
             sub = times[k:]
         o2, v2, d2, status, s2, _, n2 = _symplectic_loop(tk, xk, vk, sub, model, P, drv, col, h, max_steps - steps,
-                                                         v_max, r)
+                                                         v_max, r, split)
         out[k:], outv[k:] = o2, v2
         done, steps, nev = k + d2, steps + s2, nev + n2
     return out, outv, done, status, steps, rej, nev, halvings, h
 
 
 def _multirate(multirate: int | str, mesh: ClothMesh, params: ClothParams, x: np.ndarray, driver, h: float,
-               bending: str, stats: dict) -> int:
+               bending: str, stats: dict, damping: str = "explicit") -> int:
     """The multirate factor r of :func:`simulate` (validated; "auto" from the bending's stable step)."""
     if isinstance(multirate, str):
         if multirate != "auto":
             raise ClothInputError(f"multirate must be a whole number >= 1 or 'auto', got {multirate!r}")
-        h_bend, _ = stable_step(mesh, params, x, driven=driver.indices, bending=bending, forces="bending", safety=1.0)
+        h_bend, _ = stable_step(mesh, params, x, driven=driver.indices, bending=bending, forces="bending", safety=1.0,
+                                damping=damping)
         r = int(max(1, min(MULTIRATE_MAX, math.floor(MULTIRATE_FRACTION * h_bend / h))))
         stats["h_bend_stable"] = h_bend
     else:
@@ -432,6 +446,7 @@ def stable_step(
     v_ref: float = 5.0,
     bending: str = DEFAULT_BENDING,
     forces: str = "all",
+    damping: str = "explicit",
 ) -> tuple[float, dict[str, float]]:
     """Largest stable step [s] of the "fast" scheme (velocity Verlet), from the stiffest mode.
 
@@ -442,13 +457,18 @@ def stable_step(
     The step solves omega^2 h^2 + 2 c h = 4 (stability of velocity Verlet for a damped
     oscillator), times ``safety``. ``forces="bending"``: the same for the bending forces alone
     (stiffness and damping; no stretch, shear, drag or contact), the slow part of the multirate
-    scheme.
+    scheme. ``damping="split"``: the stretch, shear and bending dampings are applied as decays after
+    each step (:func:`simulate`'s ``damping``) and do not count; drag still does. ``"auto"``: split
+    when that makes the step more than ``SPLIT_GAIN`` times longer.
 
     Returns:
-        (h [s], {"omega_max": rad/s, "c_max": 1/s, "h_stable": s}).
+        (h [s], {"omega_max": rad/s, "c_max": 1/s (the rate that limits h), "c_conditions": 1/s (the
+        condition dampings'), "h_stable": s, "h_explicit": s, "h_split": s, "damping": the mode
+        chosen, "explicit" or "split"}).
     """
     if forces not in ("all", "bending"):
         raise ClothInputError(f"stable_step forces must be 'all' or 'bending', got {forces!r}")
+    _check_damping(damping)
     membrane = forces == "all"  # stretch, shear, their dampings, drag and contact
     if not membrane:
         colliders, self_collision = None, False
@@ -502,19 +522,27 @@ def stable_step(
 
     eps = 1e-7 * scale
     omega2 = power(lambda u: -(kforce(x + eps * u) - kforce(x - eps * u)) / (2 * eps))
-    damp = power(lambda u: -dforce(u))
+    c_cond = power(lambda u: -dforce(u))  # the Baraff-Witkin condition dampings
     cols = colliders or Colliders.none()
     if not cols.empty:
         omega2 += params.collision_stiffness / params.density
     if self_collision:
         omega2 += 2.0 * params.self_collision_stiffness / params.density
-    if membrane:
-        damp += (params.drag_linear + 2.0 * params.drag_quad * v_ref) / params.density
+    c_drag = (params.drag_linear + 2.0 * params.drag_quad * v_ref) / params.density if membrane else 0.0
+    h_explicit = _verlet_limit(omega2, c_cond + c_drag)
+    h_split = _verlet_limit(omega2, c_drag)
+    split = damping == "split" or (damping == "auto" and h_split > SPLIT_GAIN * h_explicit)
+    h = h_split if split else h_explicit
+    return safety * h, {"omega_max": math.sqrt(max(omega2, 0.0)), "c_max": c_drag + (0.0 if split else c_cond),
+                        "c_conditions": c_cond, "h_stable": h, "h_explicit": h_explicit, "h_split": h_split,
+                        "damping": "split" if split else "explicit"}
+
+
+def _verlet_limit(omega2: float, damp: float) -> float:
+    """Largest stable velocity-Verlet step of a damped oscillator: omega^2 h^2 + 2 c h = 4."""
     if omega2 <= 0:
-        h = 4.0 / max(2 * damp, 1e-9)
-    else:
-        h = (-damp + math.sqrt(damp * damp + 4.0 * omega2)) / omega2
-    return safety * h, {"omega_max": math.sqrt(max(omega2, 0.0)), "c_max": damp, "h_stable": h}
+        return 4.0 / max(2 * damp, 1e-9)
+    return (-damp + math.sqrt(damp * damp + 4.0 * omega2)) / omega2
 
 
 def simulate(
@@ -541,6 +569,7 @@ def simulate(
     settle_bath: float = 0.0,
     bath_until: float | None = None,
     multirate: int | str = 1,
+    damping: str = "explicit",
 ) -> SimResult:
     """Simulate the cloth and return its state at the requested frame times.
 
@@ -585,6 +614,16 @@ def simulate(
             Verlet. "auto": the largest r <= ``MULTIRATE_MAX`` whose outer step stays within
             ``MULTIRATE_FRACTION`` of the bending's own stable step (1 on soft fabrics).
             Recorded in ``stats["multirate"]``. See docs/cloth_parameters.md.
+        damping: ("fast" only) "explicit" (default): the stretch, shear and bending dampings are
+            forces like the others, and the step must resolve the fastest damping rate (on a light,
+            strongly damped fabric they, not the stiffnesses, set the step: up to 2x more steps).
+            "split": they are applied after each step as per-condition decays
+            (:func:`vidsim.cloth.forces.damping_sweep`, dissipative and stable for any step), so
+            only the stiffnesses and the drag set the step; a step costs about 1.5x more.
+            "auto": split when the step grows by more than ``SPLIT_GAIN``. The same damping
+            forces; split differs from explicit by a splitting error that vanishes with the step.
+            The mode used is ``stats["damping"]``. ``rk45`` integrates the dampings as forces
+            ("auto" means explicit there; "split" is refused).
 
     Returns:
         :class:`SimResult`; never raises for a diverging simulation.
@@ -595,6 +634,9 @@ def simulate(
     t_wall = time.perf_counter()
     if integrator not in ("rk45", "fast"):
         raise ClothInputError(f"integrator must be 'rk45' or 'fast', got {integrator!r}")
+    _check_damping(damping)
+    if damping == "split" and integrator != "fast":  # "auto" is explicit under rk45
+        raise ClothInputError("damping='split' needs integrator='fast' (rk45 integrates the dampings as forces)")
     times = np.ascontiguousarray(np.asarray(times, dtype=np.float64).ravel())
     if times.size == 0 or not np.all(np.isfinite(times)) or np.any(np.diff(times) <= 0):
         raise ClothInputError("times must be one or more finite, strictly increasing frame times [s]")
@@ -641,21 +683,23 @@ def simulate(
     free[driver.indices] = False
     stats: dict = {}
     if integrator == "fast":
-        if dt is None:
-            dt_used, info = stable_step(mesh, params, x, driven=driver.indices, self_collision=self_collision,
-                                        colliders=colliders, safety=safety, bending=bending)
+        mode = damping
+        if dt is not None and not (dt > 0 and math.isfinite(dt)):
+            raise ClothInputError(f"dt must be a positive finite step [s], got {dt!r}")
+        if dt is None or damping == "auto":
+            h_auto, info = stable_step(mesh, params, x, driven=driver.indices, self_collision=self_collision,
+                                       colliders=colliders, safety=safety, bending=bending, damping=damping)
             stats.update(info)
-        else:
-            if not (dt > 0 and math.isfinite(dt)):
-                raise ClothInputError(f"dt must be a positive finite step [s], got {dt!r}")
-            dt_used = float(dt)
-        r = _multirate(multirate, mesh, params, x, driver, dt_used, bending, stats)
+            mode = info["damping"]
+        dt_used = h_auto if dt is None else float(dt)
+        stats["damping"] = mode
+        r = _multirate(multirate, mesh, params, x, driver, dt_used, bending, stats, mode)
         if settle_bath * dt_used > 0.5:
             raise ClothInputError(f"settle_bath {settle_bath} 1/s is too strong for the step {dt_used:.3g} s "
                                   f"(explicit damping needs settle_bath * dt <= 0.5)")
         out, outv, done, status, steps, rej, nev, halvings, dt_used = _fast_with_retry(
             t0, x, v, times, model, P, drv, col, dt_used, int(max_steps), float(v_max),
-            FAST_MAX_HALVINGS if dt is None else 0, r)
+            FAST_MAX_HALVINGS if dt is None else 0, r, mode == "split")
         stats["dt_halvings"] = halvings
     else:
         span = max(times[-1] - t0, 1e-6)
