@@ -37,6 +37,8 @@ def main() -> None:
     ap.add_argument("--multirate", default=ClothModelConfig().multirate,
                     help="cloth.model.multirate: bending kicked once per that many steps, or 'auto' "
                          "(default: the config's)")
+    ap.add_argument("--damping", default=ClothModelConfig().damping, choices=["explicit", "split", "auto"],
+                    help="cloth.model.damping (default: the config's)")
     a = ap.parse_args()
     cv2.setNumThreads(1)
     cfg = OmegaConf.structured(ClothConfig())
@@ -50,14 +52,14 @@ def main() -> None:
     feat = extract_features(frames, np.arange(5), fs)
     tr = Trial("linen/exp1", feat, run.times, run.corner_paths_measured, cam, proj, 0.3, 0.2)
     obj = ClothObjective([tr], space_from_config(dict(cfg.fit.space)),
-                         model=ModelSettings(resolution=a.resolution, multirate=str(a.multirate)),
+                         model=ModelSettings(resolution=a.resolution, multirate=str(a.multirate), damping=a.damping),
                          features=fs)
     sets = {"stiff (linen-like)": ClothParams(stretch=3000, shear=500, bend=4e-5),
             "mid": ClothParams(stretch=300, shear=50, bend=1e-5),
             "soft": ClothParams(stretch=30, shear=5, bend=4e-7)}
     obj.evaluate(obj.theta_of(sets["mid"]))  # numba compile / cache load
     print(f"cloth objective: {a.frames} frames, {a.resolution}x{a.resolution} swatch, {cam.width}x{cam.height}, "
-          f"multirate {a.multirate}, median of {a.repeat} (wall s, and CPU s of the whole evaluation)")
+          f"multirate {a.multirate}, damping {a.damping}, median of {a.repeat} (wall s, and CPU s of the whole evaluation)")
     for name, p in sets.items():
         rows = []
         for _ in range(a.repeat):

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vidsim.cloth import ESTIMATED_NAMES, ClothParams, mid_range_params, simulate
+from vidsim.cloth.simulate import DAMPING_MODES
 from vidsim.clothfit.features import ClothFeatures, FeatureSettings, angle_features
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
 from vidsim.clothfit.rig import SkirtBody, skirt_fold_starts, skirt_model_rig
@@ -115,6 +116,7 @@ class ModelSettings:
     in the exact cone. Defaults as ``cloth.skirt`` (:class:`vidsim.config.cloth.ClothSkirtConfig`).
     ``multirate``: the "fast" scheme's bending kicks once per that many steps ("1": plain velocity
     Verlet; "auto": from the ratio of stable steps), :func:`vidsim.cloth.simulate`'s ``multirate``.
+    ``damping``: "explicit", "split" or "auto", :func:`vidsim.cloth.simulate`'s ``damping``.
     """
 
     resolution: int = 20
@@ -122,6 +124,7 @@ class ModelSettings:
     settle_bath: float = 0.0
     integrator: str = "fast"
     multirate: str = "auto"
+    damping: str = "auto"
     skirt_rings: int = 8
     skirt_around: int = 24
     skirt_rest_bend: str = "cone"
@@ -186,6 +189,9 @@ class ClothObjective:
         if model.integrator not in ("fast", "rk45"):
             raise ObjectiveError(f"cloth.model.integrator must be 'fast' or 'rk45', got {model.integrator!r}")
         self._multirate = multirate_setting(model.multirate)
+        if model.damping not in DAMPING_MODES or (model.damping == "split" and model.integrator != "fast"):
+            raise ObjectiveError(f"cloth.model.damping must be one of {DAMPING_MODES} ('split' with the fast "
+                                 f"integrator only), got {model.damping!r} with integrator {model.integrator!r}")
         if int(model.skirt_fold_members) != model.skirt_fold_members or model.skirt_fold_members < 0:
             raise ObjectiveError(f"cloth.skirt.model_fold_members must be an integer >= 0, got {model.skirt_fold_members!r}")
         if not (np.isfinite(model.skirt_fold_amplitude) and model.skirt_fold_amplitude >= 0):
@@ -285,7 +291,8 @@ class ClothObjective:
                 t = time.perf_counter()
                 try:
                     res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
-                                   settle_bath=self.model.settle_bath, x0=x0, multirate=self._multirate)
+                                   settle_bath=self.model.settle_bath, x0=x0, multirate=self._multirate,
+                                   damping=self.model.damping)
                 except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
                     timing["simulate"] += time.perf_counter() - t
                     out.ok, out.failure = False, f"{tr.name}{member}: simulator raised {type(e).__name__}: {e}"

@@ -156,6 +156,11 @@ class ClothModelConfig:
     ``multirate``: the fast scheme's bending kicks once per that many steps ("1": plain velocity
     Verlet; "auto", the default since 3 Dec 2026: the factor from the ratio of the bending's and the
     whole model's stable steps; :func:`vidsim.cloth.simulate`, docs/cloth_parameters.md).
+    ``damping``: how the fast scheme integrates the stretch, shear and bending dampings: "explicit"
+    (as forces, the setting of every fit before 4 Dec 2026), "split" (as per-condition decays after
+    each step, stable for any step) or "auto", the default since 4 Dec 2026 (split where that
+    lengthens the step by more than 1.5x, else explicit; :func:`vidsim.cloth.simulate`,
+    docs/cloth_parameters.md).
     """
 
     resolution: int = 20
@@ -163,6 +168,7 @@ class ClothModelConfig:
     settle_bath: float = 0.0
     integrator: str = "fast"
     multirate: str = "auto"
+    damping: str = "auto"
     frame_stride: int = 1
     max_frames: int = 0
 

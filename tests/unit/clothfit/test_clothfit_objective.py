@@ -97,6 +97,10 @@ def test_bad_inputs_name_the_field(twin_trial):
         with pytest.raises(ObjectiveError, match="cloth.model.multirate"):
             ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
                            model=ModelSettings(multirate=bad))
+    for bad in (dict(damping="implicit"), dict(damping="split", integrator="rk45")):
+        with pytest.raises(ObjectiveError, match="cloth.model.damping"):
+            ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
+                           model=ModelSettings(**bad))
     with pytest.raises(ClothFilmError, match="corners0"):
         swatch_model_mesh(np.zeros((3, 3)), 10, 0.3)
     with pytest.raises(FeatureError, match="background_frames"):

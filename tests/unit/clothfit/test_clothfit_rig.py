@@ -181,7 +181,7 @@ def test_skirt_error_is_the_mean_over_its_fold_seeded_members():
     assert np.allclose(r2.e_fold[0], 0.5 * (ra.e_fold[0] + rb.e_fold[0]))
     # keep=True returns the first member's motion (the side-by-side videos show it)
     first = simulate(mesh, p, drv, t, integrator="fast", t0=t0, colliders=col, x0=two.starts[0][0],
-                     multirate=multirate_setting(two.model.multirate))
+                     multirate=multirate_setting(two.model.multirate), damping=two.model.damping)
     assert len(r2.positions) == 1 and np.array_equal(r2.positions[0], first.positions)
     assert objective(0).starts == [[None]]  # 0: the single start in the exact cone, as before
     with pytest.raises(ObjectiveError, match="cloth.skirt.model_fold_members"):
