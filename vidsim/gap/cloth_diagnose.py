@@ -167,6 +167,14 @@ class ClothDiagnoseConfig:
             its own value under 0.5 ms or 0.003; time offset was named second). The named effect's
             parameters, held-out gap and closure are then the continued refit's; the judgement
             that named it (and its closure) is kept under ``before_polish``.
+        multirate, damping: the scheme the diagnosis simulates with (:class:`ClothSetup`; the
+            fast scheme's bending multirate factor, "auto" or a whole number, and its damping mode,
+            "explicit", "split" or "auto", resolved once at the fixed step). The diagnosis refits
+            the base parameters under its own scheme, so it need not be the fit's. Default 1 and
+            "explicit": plain velocity Verlet at a step fixed from the fit's doubled stiffnesses.
+            The study's scheme (``multirate=auto damping=auto``, the ``cloth.model`` defaults) is
+            faster on stiff fabrics but, measured on the suite's time-offset case (4 Dec 2026,
+            docs/gap.md), its impulse bending (r = 8) leaves that case unnamed.
         hold_dynamics: refit an imaging or timing candidate (and sets of them) with the base's
             dynamics parameters held at the base refit, only the candidate and the outline offset
             moving: they re-render the same motion. Off by default: measured on the grips pass
@@ -217,6 +225,8 @@ class ClothDiagnoseConfig:
     grip_radius_px: float = 12.0
     polish_nfev: int = 25
     hold_dynamics: bool = False
+    multirate: str = "1"
+    damping: str = "explicit"
 
     def validate(self) -> None:
         """Raise :class:`ClothGapError` naming the field when a setting is not usable."""
@@ -244,6 +254,13 @@ class ClothDiagnoseConfig:
         if self.global_evals < 0 or not (np.isfinite(self.global_width) and self.global_width > 0):
             raise ClothGapError(f"gap.cloth.diagnose.global_evals must be >= 0 and global_width > 0, got "
                                 f"{self.global_evals}, {self.global_width}")
+        mr = str(self.multirate).strip()
+        if mr != "auto" and not (mr.isdigit() and int(mr) >= 1):
+            raise ClothGapError(f"gap.cloth.diagnose.multirate must be 'auto' or a whole number >= 1, got "
+                                f"{self.multirate!r}")
+        if self.damping not in ("explicit", "split", "auto"):
+            raise ClothGapError(f"gap.cloth.diagnose.damping must be 'explicit', 'split' or 'auto', got "
+                                f"{self.damping!r}")
         if self.residual not in RESIDUALS:
             raise ClothGapError(f"gap.cloth.diagnose.residual must be one of {list(RESIDUALS)}, got {self.residual!r}")
         if self.region not in REGIONS:
@@ -815,7 +832,8 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
     res_f = int(cfg.floor_resolution) or int(st.resolution)
     mesh = swatch_model_mesh(st.corner_paths[0], res_f, st.size)
     drv, t0 = swatch_driver(mesh, st.times, st.corner_paths, st.settle_s)
-    res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath)
+    res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath,
+                   multirate=st.multirate, damping=st.damping)
     if not res.ok:
         raise ClothGapError(f"the floor's twin of the fit failed to simulate: {res.failure}")
     V = res.positions[st.obs]
@@ -939,7 +957,7 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         raise ClothGapError("the cloth is not visible in every compared frame (empty silhouettes)")
     ft = np.asarray(trial.times, float)[clip]
     setup = ClothSetup(trial.times, trial.corner_paths, clip, trial.camera, trial.size, trial.density,
-                       int(resolution), float(settle_s), float(settle_bath))
+                       int(resolution), float(settle_s), float(settle_bath), str(cfg.multirate), cfg.damping)
     cands = [c for c in cfg.candidates]
     base = ClothGapModel(setup, params0, estimated, (), cfg.scale, cfg.ramp)
     dt = base.dt
@@ -1222,4 +1240,6 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
                            "jitter_motion_px": jit_motion.tolist(),
                            "camera_part": camera_part, "floor": floor_info, "skipped_candidates": skipped,
                            "fixed_step_s": dt, "model": {"resolution": int(resolution), "frame_stride": int(frame_stride),
-                                                         "estimated": list(estimated)}})
+                                                         "estimated": list(estimated),
+                                                         "multirate": base.multirate_r,
+                                                         "damping": base.damping_mode}})

@@ -63,12 +63,14 @@ model's image scale unless a name says full resolution.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
 from vidsim.cloth import ClothParams, simulate, stable_step
+from vidsim.cloth.simulate import MULTIRATE_FRACTION, MULTIRATE_MAX
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
 from vidsim.gap.rigid_model import EffectSpec, segmented_blur
 from vidsim.video.camera import PinholeCamera
@@ -275,6 +277,11 @@ class ClothSetup:
         resolution: model vertices per side; settle_s: rest before the first frame, seconds.
         settle_bath: viscous damping rate of the settle, 1/s (0: off; see
             :func:`vidsim.cloth.simulate`): the model then starts the clip from its equilibrium.
+        multirate, damping: the fast scheme's bending multirate factor ("auto" or a whole number
+            >= 1) and damping mode ("explicit", "split" or "auto"), as ``cloth.model`` gives them
+            to the fit's objective (:func:`vidsim.cloth.simulate`); the defaults, 1 and "explicit",
+            are plain velocity Verlet with the dampings as forces. The gap model resolves "auto"
+            once, at its fixed step (:class:`ClothGapModel`), so that its refits see one scheme.
     """
 
     times: np.ndarray
@@ -286,8 +293,16 @@ class ClothSetup:
     resolution: int = 12
     settle_s: float = 0.5
     settle_bath: float = 0.0
+    multirate: int | str = 1
+    damping: str = "explicit"
 
     def __post_init__(self) -> None:
+        if self.damping not in ("explicit", "split", "auto"):
+            raise ClothGapError(f"damping must be 'explicit', 'split' or 'auto', got {self.damping!r}")
+        mr = str(self.multirate).strip()
+        if mr != "auto" and not (mr.isdigit() and int(mr) >= 1):
+            raise ClothGapError(f"multirate must be 'auto' or a whole number >= 1, got {self.multirate!r}")
+        self.multirate = "auto" if mr == "auto" else int(mr)
         self.times = np.asarray(self.times, float)
         self.corner_paths = np.asarray(self.corner_paths, float)
         self.obs = np.asarray(self.obs, int)
@@ -318,7 +333,14 @@ class ClothGapModel:
         effects: names from :data:`CLOTH_EFFECTS`.
         scale: image scale of the residuals; ramp: soft-silhouette ramp, pixels at that scale.
         dt: fixed simulation step, seconds (None: from the stiffest mode of ``params0`` with its
-            stiffnesses and dampings doubled, times 0.9).
+            stiffnesses and dampings doubled, times 0.9, under the setup's damping mode).
+
+    The setup's "auto" settings are resolved here, once, on that doubled ``params0`` (a refit moves
+    the parameters, and a scheme that switched with them would make the residuals jump):
+    ``damping_mode`` is "split" where splitting the dampings off lengthens the step by more than
+    :data:`vidsim.cloth.simulate.SPLIT_GAIN`, and ``multirate_r`` the largest factor whose outer
+    step stays within ``MULTIRATE_FRACTION`` of the doubled bending's stable step, the rules
+    :func:`vidsim.cloth.simulate` applies per run.
     """
 
     def __init__(self, setup: ClothSetup, params0: ClothParams, estimated: list[str] | tuple[str, ...],
@@ -356,11 +378,20 @@ class ClothGapModel:
             k += n
         self.n_params = k
         self.n_base = self.n_est + 1
-        if dt is None:
-            big = {n: 2.0 * getattr(params0, n) for n in ("bend", "stretch", "shear") + DAMPING_NAMES}
-            h, _ = stable_step(self.mesh, params0.replace(**big), driven=self.mesh.tags["top_corners"], safety=0.9)
-            dt = float(h)
+        big = params0.replace(**{n: 2.0 * getattr(params0, n) for n in ("bend", "stretch", "shear") + DAMPING_NAMES})
+        driven = self.mesh.tags["top_corners"]
+        self.damping_mode = setup.damping
+        if dt is None or setup.damping == "auto":
+            h, info = stable_step(self.mesh, big, driven=driven, safety=0.9, damping=setup.damping)
+            self.damping_mode = str(info["damping"])
+            dt = float(h) if dt is None else dt
         self.dt = float(dt)
+        if setup.multirate == "auto":
+            h_bend, _ = stable_step(self.mesh, big, driven=driven, forces="bending", safety=1.0,
+                                    damping=self.damping_mode)
+            self.multirate_r = int(max(1, min(MULTIRATE_MAX, math.floor(MULTIRATE_FRACTION * h_bend / self.dt))))
+        else:
+            self.multirate_r = int(setup.multirate)
         self._sim_cache: list[tuple[bytes, tuple]] = []
         self.n_sims = 0
         self._steps: np.ndarray | None = None
@@ -476,7 +507,8 @@ class ClothGapModel:
         self.n_sims += 1
         try:
             res = simulate(self.mesh, p, drv, self.setup.times, integrator="fast", t0=t0, dt=self.dt, wind=wind,
-                           settle_bath=self.setup.settle_bath)
+                           settle_bath=self.setup.settle_bath, multirate=self.multirate_r,
+                           damping=self.damping_mode)
             out = (res.positions, res.velocities, bool(res.ok))
         except ArithmeticError:
             T, N = self.setup.times.size, self.mesh.n_vertices

@@ -306,6 +306,11 @@ def test_region_settings_are_checked():
         ClothDiagnoseConfig(grip_radius_px=0.5).validate()
     with pytest.raises(cloth_diagnose.ClothGapError, match="polish_nfev"):
         ClothDiagnoseConfig(polish_nfev=-1).validate()
+    with pytest.raises(cloth_diagnose.ClothGapError, match="gap.cloth.diagnose.multirate"):
+        ClothDiagnoseConfig(multirate="0").validate()
+    with pytest.raises(cloth_diagnose.ClothGapError, match="gap.cloth.diagnose.damping"):
+        ClothDiagnoseConfig(damping="implicit").validate()
+    ClothDiagnoseConfig(multirate="auto", damping="auto").validate()
 
 
 @pytest.mark.slow
