@@ -673,6 +673,8 @@ def simulate(
             )
     if not (math.isfinite(settle_bath) and settle_bath >= 0):
         raise ClothInputError(f"settle_bath must be a finite damping rate >= 0 [1/s], got {settle_bath!r}")
+    if bath_until is not None and not math.isfinite(bath_until):
+        raise ClothInputError(f"bath_until must be a finite time [s] (or None: times[0]), got {bath_until!r}")
     model = _model(mesh, params, w)
     P = _param_vector(mesh, params, self_collision, bending)
     P[P_BATH] = float(settle_bath)

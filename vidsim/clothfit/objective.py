@@ -16,6 +16,8 @@ failure text in ``info``: never an exception inside an optimiser, never NaN.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import time
 from dataclasses import dataclass, field
 
@@ -54,6 +56,11 @@ class Trial:
         size: swatch side, metres (measured; unused for a skirt).
         density: areal density, kg/m^2 (measured).
         skirt: the measured body motion and cut of a skirt trial (None: a swatch trial).
+        drive_times, drive_paths, drive_skirt: the measured motion that drives the model, at the
+            footage's full rate (None: ``times``, ``corner_paths`` and ``skirt`` themselves).
+            :meth:`strided` compares every k-th frame but keeps driving the model by every measured
+            sample: until 4 Dec 2026 the model's grips followed a spline through every k-th sample
+            only (on the exp1 motion 2.6 mm off the measured path at stride 2, 18 mm at stride 4).
     """
 
     name: str
@@ -65,11 +72,27 @@ class Trial:
     size: float
     density: float
     skirt: SkirtBody | None = None
+    drive_times: np.ndarray | None = None
+    drive_paths: np.ndarray | None = None
+    drive_skirt: SkirtBody | None = None
 
     def __post_init__(self) -> None:
         T = self.features.n_frames
         self.times = np.asarray(self.times, float)
         self.corner_paths = np.asarray(self.corner_paths, float)
+        if self.drive_times is None:
+            self.drive_times, self.drive_paths, self.drive_skirt = self.times, self.corner_paths, self.skirt
+        else:
+            self.drive_times = np.asarray(self.drive_times, float)
+            self.drive_paths = np.asarray(self.drive_paths, float)
+            D = self.drive_times.size
+            if (self.drive_times.ndim != 1 or self.drive_paths.shape != (D,) + self.corner_paths.shape[1:]
+                    or (self.skirt is None) != (self.drive_skirt is None)
+                    or (self.drive_skirt is not None and self.drive_skirt.n_frames != D)
+                    or D < 2 or self.drive_times[0] > self.times[0] or self.drive_times[-1] < self.times[-1]):
+                raise ObjectiveError(f"trial {self.name}: the driving motion ({D} samples, paths "
+                                     f"{self.drive_paths.shape}) must cover the compared frames' times "
+                                     f"[{self.times[0]}, {self.times[-1]}] s with the trial's corners/body")
         n_grip = 0 if self.skirt is not None else 2
         if self.times.shape != (T,) or self.corner_paths.shape != (T, n_grip, 3):
             raise ObjectiveError(f"trial {self.name}: {T} feature frames but times {self.times.shape} and corner "
@@ -87,7 +110,8 @@ class Trial:
             idx = idx[:max_frames]
         return Trial(self.name, self.features.subset(idx), self.times[idx], self.corner_paths[idx], self.camera,
                      self.projector, self.size, self.density,
-                     None if self.skirt is None else self.skirt.subset(idx))
+                     None if self.skirt is None else self.skirt.subset(idx),
+                     self.drive_times, self.drive_paths, self.drive_skirt)
 
 
 def multirate_setting(value: object) -> int | str:
@@ -166,7 +190,7 @@ def space_from_config(space: dict) -> Space:
     bad = [n for n in space if n not in ESTIMATED_NAMES]
     if bad:
         raise ObjectiveError(f"cloth.fit.space: unknown parameter(s) {bad}; expected names from {list(ESTIMATED_NAMES)}")
-    return Space.from_config({k: dict(v) for k, v in space.items()})
+    return Space.from_config({k: dict(v) if isinstance(v, Mapping) else v for k, v in space.items()})
 
 
 class ClothObjective:
@@ -207,19 +231,24 @@ class ClothObjective:
         unknown = set(fixed or {}) - set(ESTIMATED_NAMES)
         if unknown:
             raise ObjectiveError(f"cloth.fit.fixed: unknown parameter(s) {sorted(unknown)}")
+        both = sorted(set(fixed or {}) & set(space.names))
+        if both:
+            raise ObjectiveError(f"cloth.fit.fixed sets {both}, which are also estimated (cloth.fit.estimate / "
+                                 f"cloth.fit.space): the fixed value would be ignored; drop them from one of the two")
         self.fixed = dict(fixed or {})
+        self._check_box(trials[0].density)
         self._rigs = []
         for tr in trials:
             starts: list = [None]
             if tr.skirt is not None:
-                mesh, drv, t0, col = skirt_model_rig(tr.skirt, tr.times, model.skirt_rings, model.skirt_around,
-                                                     model.settle_s, model.skirt_rest_bend)
+                mesh, drv, t0, col = skirt_model_rig(tr.drive_skirt, tr.drive_times, model.skirt_rings,
+                                                     model.skirt_around, model.settle_s, model.skirt_rest_bend)
                 if model.skirt_fold_members > 0 and model.skirt_fold_amplitude > 0:
                     starts = skirt_fold_starts(mesh, tr.skirt, model.skirt_fold_members, model.skirt_fold_amplitude,
                                                model.skirt_fold_seed)
             else:
                 mesh = swatch_model_mesh(tr.corner_paths[0], model.resolution, tr.size)
-                drv, t0 = swatch_driver(mesh, tr.times, tr.corner_paths, model.settle_s)
+                drv, t0 = swatch_driver(mesh, tr.drive_times, tr.drive_paths, model.settle_s)
                 col = None
             self._rigs.append((mesh, drv, t0, col, starts))
         self.n_evals = 0
@@ -248,6 +277,23 @@ class ClothObjective:
     def starts(self) -> list[list]:
         """Per trial its start positions (``[None]``: the mesh's rest state; skirts: the fold seeds)."""
         return [r[4] for r in self._rigs]
+
+    def _check_box(self, density: float) -> None:
+        """Refuse a box whose ends are not physical (e.g. a negative drag), before any evaluation:
+        mid-fit, the first point beyond it would stop the run, and a resumed run at the same point."""
+        mid = self.space.from_unit(np.full(self.space.dim, 0.5))
+        try:
+            self.params(mid, density)
+        except ValueError as e:
+            raise ObjectiveError(f"cloth.fit.fixed: {e}") from None
+        for j, ax in enumerate(self.space.axes):
+            for end, val in (("lo", ax.lo), ("hi", ax.hi)):
+                th = mid.copy()
+                th[j] = val
+                try:
+                    self.params(th, density)
+                except ValueError as e:
+                    raise ObjectiveError(f"cloth.fit.space.{ax.name}.{end} = {val}: {e}") from None
 
     # ------------------------------------------------------------------ parameters
     def params(self, theta: np.ndarray, density: float) -> ClothParams:

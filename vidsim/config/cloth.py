@@ -195,7 +195,7 @@ class ClothFitConfig:
     the others stay at ``fixed``/their mid-range value). ``grid_params``: the "static"
     parameters of the coarse grid (``grid_levels`` values each). ``budget``: evaluations after
     the grid (annealing or CMA-ES). Annealing schedule: ``cooling`` per ``evals_per_T``
-    evaluations, simplex ``step``/``min_step`` in the unit cube, reset at factor 3.
+    simplex moves (1, 2 or n + 2 evaluations each, :mod:`vidsim.optim.anneal`), simplex ``step``/``min_step`` in the unit cube, reset at factor 3.
     ``method``: ``anneal`` or ``cmaes``; ``n_candidates``: best distinct points a fit hands to
     the cross-trial selection; ``estimate``: the names of ``space`` to estimate (empty = all; the
     rest stay at ``fixed`` or mid-range). Hydra merges dict overrides, so narrow the space with

@@ -247,8 +247,17 @@ class ClothDiagnoseConfig:
             raise ClothGapError(f"gap.cloth.diagnose.jitter_min_motion_px must be >= 0, got {self.jitter_min_motion_px}")
         if not 0.0 <= self.jitter_min_white <= 1.0:
             raise ClothGapError(f"gap.cloth.diagnose.jitter_min_white must be in [0, 1], got {self.jitter_min_white}")
-        if self.top_k < 1 or self.max_nfev < 1 or self.base_nfev < 1 or self.roi_px < 1:
-            raise ClothGapError("gap.cloth.diagnose.top_k, max_nfev and roi_px must be >= 1")
+        low = {k: getattr(self, k) for k in ("top_k", "max_nfev", "base_nfev", "roi_px") if getattr(self, k) < 1}
+        if low:
+            raise ClothGapError(f"gap.cloth.diagnose: {low} must be >= 1")
+        for k in ("ramp", "fd_target_px"):
+            v = float(getattr(self, k))
+            if not (np.isfinite(v) and v > 0):
+                raise ClothGapError(f"gap.cloth.diagnose.{k} must be a positive number, got {v!r}")
+        for k in ("min_closure", "min_excess"):
+            v = float(getattr(self, k))
+            if not np.isfinite(v):
+                raise ClothGapError(f"gap.cloth.diagnose.{k} must be a finite number, got {v!r}")
         if self.polish_nfev < 0:
             raise ClothGapError(f"gap.cloth.diagnose.polish_nfev must be >= 0, got {self.polish_nfev}")
         if self.global_evals < 0 or not (np.isfinite(self.global_width) and self.global_width > 0):
@@ -820,8 +829,13 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
                feature_settings) -> tuple[np.ndarray, np.ndarray, dict]:
     """The gap of the true parameters on a twin of the fit (see the module docstring, step 3).
 
+    On the model's own mesh (``floor_resolution`` 0) the twin is simulated with the model's fixed
+    step and scheme, so it moves exactly as the model does at ``theta``; a finer mesh takes its
+    own stable step.
+
     Returns:
-        ``(floor (F,) full-res px per compared frame, twin coverage (F, h, w), info)``.
+        ``(twin silhouettes (F, h, w) at the model's scale, twin positions (F, N, 3) at the compared
+        frames, info)``.
     """
     from vidsim.cloth import simulate
     from vidsim.clothfit.features import extract_features
@@ -832,10 +846,20 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
     res_f = int(cfg.floor_resolution) or int(st.resolution)
     mesh = swatch_model_mesh(st.corner_paths[0], res_f, st.size)
     drv, t0 = swatch_driver(mesh, st.times, st.corner_paths, st.settle_s)
-    res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath,
-                   multirate=st.multirate, damping=st.damping)
+    if res_f == int(st.resolution):
+        # the model's own mesh: its own fixed step and scheme, so the twin moves exactly as the
+        # model does and the floor is rendering, segmentation and noise only (until 4 Dec 2026 the
+        # twin took the automatic step, and the floor also held the chaotic divergence of two steps)
+        kw = dict(dt=model.dt, multirate=model.multirate_r, damping=model.damping_mode)
+    else:  # a finer mesh needs its own (shorter) stable step
+        kw = dict(multirate=st.multirate, damping=st.damping)
+    try:
+        res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath, **kw)
+    except ArithmeticError as e:
+        raise ClothGapError(f"the floor's twin of the fit ({res_f}x{res_f}) failed to simulate: "
+                            f"{type(e).__name__}: {e}") from e
     if not res.ok:
-        raise ClothGapError(f"the floor's twin of the fit failed to simulate: {res.failure}")
+        raise ClothGapError(f"the floor's twin of the fit ({res_f}x{res_f}) failed to simulate: {res.failure}")
     V = res.positions[st.obs]
     fs = FilmSettings(n_background=4, noise_sigma=float(trial.noise_sigma), blur_sigma_px=float(cfg.floor_blur_px))
     frames = film_cloth(V, mesh.triangles, model.cam_full, trial.projector, np.random.default_rng(cfg.seed + 17), fs)

@@ -650,7 +650,9 @@ class ClothGapModel:
             tp[j] += base[j]
             d = np.linalg.norm(self.image_points(tp) - P0, axis=-1)
             dmax = float(np.nanmax(d)) if np.any(np.isfinite(d)) else np.inf
-            if dmax > target_px:
+            # a perturbed run that failed (inf) keeps the typical-scale step: a zero step would make
+            # every later Jacobian column NaN
+            if np.isfinite(dmax) and dmax > target_px:
                 steps[j] = base[j] * target_px / dmax
         self._steps = steps
         return steps

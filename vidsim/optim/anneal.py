@@ -4,7 +4,9 @@ The seed's optimiser for cloth (section 4.4): the simplex moves (reflect, expand
 shrink) are judged on function values with thermal fluctuations -- a positive fluctuation
 ``-T log(u)`` on the stored vertices and a negative one on each trial point -- so uphill moves
 are accepted with a probability that falls with the temperature. Temperature follows a
-geometric schedule (``T <- cooling * T`` every ``evals_per_T`` evaluations), and whenever it has
+geometric schedule (``T <- cooling * T`` every ``evals_per_T`` simplex moves; a move costs 1, 2
+or n + 2 evaluations, so a temperature lasts about 1.2-1.8 ``evals_per_T`` evaluations: 23-37 at
+20 in 9-D, where Press et al. count evaluations), and whenever it has
 fallen by ``reset_factor`` (3, as the seed) since the last reset the simplex is rebuilt around
 the best point found so far, each time at half the previous size (down to ``min_step``). The best point ever evaluated is returned.
 
@@ -29,7 +31,8 @@ class AnnealConfig:
         T0: initial temperature in objective units; None: half the spread (std) of the initial
             simplex's values.
         cooling: geometric factor per temperature step (0 < cooling < 1).
-        evals_per_T: evaluations at each temperature.
+        evals_per_T: simplex moves at each temperature (each 1, 2 or n + 2 evaluations; the name
+            is historical: Press et al.'s amebsa counts evaluations).
         reset_factor: rebuild the simplex around the best point when T fell by this factor.
         step: initial simplex edge in the unit cube.
         min_step: the smallest edge used when a reset shrinks the simplex.

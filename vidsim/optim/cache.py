@@ -143,13 +143,24 @@ class EvalCache:
 
     @staticmethod
     def _drop_torn_tail(path: Path) -> None:
-        """Cut a torn last line (a kill mid-write) so the next record starts on its own line."""
+        """Cut a torn last line (a kill mid-write) so the next record starts on its own line; a last
+        line that is a whole record and lost only its newline is kept (the newline added): it was
+        read into the store, and cutting it would drop it from the log for the next reader."""
         if not path.is_file():
             return
         data = path.read_bytes()
         if data and not data.endswith(b"\n"):
+            cut = data.rfind(b"\n") + 1
+            try:
+                whole = isinstance(json.loads(data[cut:].decode()), dict)
+            except (UnicodeDecodeError, json.JSONDecodeError):
+                whole = False
             with open(path, "r+b") as fh:
-                fh.truncate(data.rfind(b"\n") + 1)
+                if whole:
+                    fh.seek(0, os.SEEK_END)
+                    fh.write(b"\n")
+                else:
+                    fh.truncate(cut)
                 fh.flush()
                 os.fsync(fh.fileno())
 

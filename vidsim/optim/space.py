@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,8 +66,18 @@ class Space:
         """From ``{name: {lo, hi, log}}`` (a Hydra node converted to a dict)."""
         axes = []
         for name, spec in d.items():
+            if not isinstance(spec, Mapping):
+                raise ConfigError(f"parameter '{name}': expected a mapping {{lo, hi, log}}, got {spec!r}")
             unknown = set(spec) - {"lo", "hi", "log"}
             if unknown:
                 raise ConfigError(f"parameter '{name}': unknown key(s) {sorted(unknown)} (expected lo, hi, log)")
-            axes.append(Axis(name, float(spec["lo"]), float(spec["hi"]), bool(spec.get("log", False))))
+            missing = [k for k in ("lo", "hi") if k not in spec]
+            if missing:
+                raise ConfigError(f"parameter '{name}': missing {missing} (expected lo, hi and optionally log)")
+            try:
+                lo, hi = float(spec["lo"]), float(spec["hi"])
+            except (TypeError, ValueError):
+                raise ConfigError(f"parameter '{name}': lo and hi must be numbers, got {spec['lo']!r}, "
+                                  f"{spec['hi']!r}") from None
+            axes.append(Axis(name, lo, hi, bool(spec.get("log", False))))
         return cls(tuple(axes))

@@ -55,6 +55,8 @@ def test_bath_input_errors():
         _run(0.5, -1.0)
     with pytest.raises(ClothInputError, match="settle_bath .* too strong"):
         _run(0.5, 1e4, dt=1e-3)
+    with pytest.raises(ClothInputError, match="bath_until must be a finite time"):
+        _run(0.5, 20.0, bath_until=float("nan"))
     with pytest.raises(ClothRealityError, match="settle_bath"):
         simulate_swatch(fabric_profile("linen"), swatch_motion("exp1"), {}, np.random.default_rng(0),
                         resolution=5, n_frames=2, settle_bath=float("nan"))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from vidsim.errors import ConfigError
 from omegaconf import OmegaConf
 
 from vidsim.cloth import ClothParams
@@ -101,6 +103,18 @@ def test_bad_inputs_name_the_field(twin_trial):
         with pytest.raises(ObjectiveError, match="cloth.model.damping"):
             ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
                            model=ModelSettings(**bad))
+    # a box whose end is not physical is refused before any evaluation, naming the end
+    with pytest.raises(ObjectiveError, match=r"cloth.fit.space.drag_linear.lo = -1.0: drag_linear must be >= 0"):
+        ClothObjective([tr], space_from_config({"drag_linear": {"lo": -1.0, "hi": 2.0}}))
+    with pytest.raises(ObjectiveError, match=r"cloth.fit.fixed: drag_quad must be >= 0"):
+        ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}),
+                       fixed={"drag_quad": -0.5})
+    with pytest.raises(ObjectiveError, match=r"cloth.fit.fixed sets \['bend'\], which are also estimated"):
+        ClothObjective([tr], space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}), fixed={"bend": 1e-6})
+    for bad, msg in (({"bend": 3e-6}, "expected a mapping"), ({"bend": {"hi": 1.0}}, "missing \\['lo'\\]"),
+                     ({"bend": {"lo": "x", "hi": 1.0}}, "lo and hi must be numbers")):
+        with pytest.raises(ConfigError, match="parameter 'bend': " + msg):
+            space_from_config(bad)
     with pytest.raises(ClothFilmError, match="corners0"):
         swatch_model_mesh(np.zeros((3, 3)), 10, 0.3)
     with pytest.raises(FeatureError, match="background_frames"):
@@ -148,3 +162,25 @@ def test_grid_and_annealing_recover_stretch_and_resume(twin_trial, tmp_path):
     tr2 = Trial(tr.name, feat2, tr.times, tr.corner_paths, tr.camera, tr.projector, tr.size, tr.density)
     assert ClothObjective([tr2], space, fixed=fixed, model=ModelSettings(resolution=16, settle_s=0.5),
                           features=fs).fingerprint() != obj.fingerprint()
+
+
+def test_a_strided_trial_is_still_driven_by_every_measured_sample(twin_trial):
+    """Comparing every 2nd frame must not thin the measured corner paths that drive the model."""
+    tr, fs = twin_trial
+    space = space_from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}})
+    model = ModelSettings(resolution=6, settle_s=0.2)
+    full = ClothObjective([tr], space, model=model, features=fs)
+    st = tr.strided(2, 5)
+    assert st.times.size == 5 and st.drive_times.size == tr.times.size
+    half = ClothObjective([st], space, model=model, features=fs)
+    d_full, d_half = full._rigs[0][1], half._rigs[0][1]
+    np.testing.assert_array_equal(d_half.times, d_full.times)
+    np.testing.assert_array_equal(d_half.positions, d_full.positions)
+    assert full._rigs[0][2] == half._rigs[0][2]  # the same settle start
+    # and a strided trial's driving motion is part of what decides a score
+    assert half.fingerprint() != ClothObjective([Trial(st.name, st.features, st.times, st.corner_paths, st.camera,
+                                                       st.projector, st.size, st.density)], space, model=model,
+                                                 features=fs).fingerprint()
+    with pytest.raises(ObjectiveError, match="driving motion"):
+        Trial(st.name, st.features, st.times, st.corner_paths, st.camera, st.projector, st.size, st.density,
+              None, tr.times[:3], tr.corner_paths[:3])

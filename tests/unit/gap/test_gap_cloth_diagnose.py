@@ -46,6 +46,24 @@ def test_the_diagnosis_is_handed_no_truth():
                       "theta", "mask"}
 
 
+def test_floor_twin_on_the_models_mesh_moves_exactly_as_the_model(null_case):
+    """The floor is rendering, segmentation and noise only: at the model's resolution its twin is
+    simulated with the model's own fixed step and scheme (its motion equals the model's bit for
+    bit), so no chaotic divergence of two integrators is counted as irreducible."""
+    from vidsim.cloth import mid_range_params
+    from vidsim.clothfit.features import FeatureSettings
+    from vidsim.gap.cloth_model import ClothGapModel, ClothSetup
+
+    diag, _, cc = null_case
+    setup = ClothSetup(cc.trial.times, cc.trial.corner_paths, np.asarray(diag.frames)[:8], cc.trial.camera,
+                       cc.trial.size, cc.trial.density, SCENE.resolution, SCENE.settle_s_model)
+    model = ClothGapModel(setup, mid_range_params(density=cc.trial.density), ["bend", "stretch"], (), 0.5, 1.0)
+    th = model.theta0()
+    sil, V, info = cloth_diagnose.twin_floor(model, th, cc.trial, ClothDiagnoseConfig(), FeatureSettings())
+    assert info["resolution"] == SCENE.resolution and sil.shape[0] == 8
+    np.testing.assert_array_equal(V, model.simulate(th)[0][setup.obs])
+
+
 def test_null_case_names_nothing(null_case):
     diag, score, cc = null_case
     assert diag.named == [], diag.verdict
@@ -311,6 +329,13 @@ def test_region_settings_are_checked():
     with pytest.raises(cloth_diagnose.ClothGapError, match="gap.cloth.diagnose.damping"):
         ClothDiagnoseConfig(damping="implicit").validate()
     ClothDiagnoseConfig(multirate="auto", damping="auto").validate()
+    with pytest.raises(cloth_diagnose.ClothGapError, match="base_nfev"):
+        ClothDiagnoseConfig(base_nfev=0).validate()
+    for k in ("ramp", "fd_target_px"):
+        with pytest.raises(cloth_diagnose.ClothGapError, match=k):
+            ClothDiagnoseConfig(**{k: 0.0}).validate()
+    with pytest.raises(cloth_diagnose.ClothGapError, match="min_closure"):
+        ClothDiagnoseConfig(min_closure=float("nan")).validate()
 
 
 @pytest.mark.slow

@@ -76,6 +76,14 @@ def test_replay_through_cache_gives_identical_run(tmp_path):
     assert calls["n"] == first - 70  # only the evaluations after the kill point were recomputed
     assert resumed.best_f == fresh.best_f and np.array_equal(resumed.best_u, fresh.best_u)
     assert np.array_equal(resumed.trace, fresh.trace)
+    # a kill between a whole record and its newline: the record stays in the log (and is not redone)
+    lines = log.read_text().splitlines()[:40]
+    log.write_text("\n".join(lines))
+    calls["n"] = 0
+    with EvalCache(counted, log) as f:
+        again = anneal(f, np.array([0.2, 0.3]), AnnealConfig(budget=120, seed=3))
+    assert calls["n"] == first - 40 and np.array_equal(again.trace, fresh.trace)
+    assert log.read_text().splitlines()[:40] == lines
 
 
 def test_grid_search_and_space():
