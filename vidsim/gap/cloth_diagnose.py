@@ -175,6 +175,11 @@ class ClothDiagnoseConfig:
             The study's scheme (``multirate=auto damping=auto``, the ``cloth.model`` defaults) is
             faster on stiff fabrics but, measured on the suite's time-offset case (4 Dec 2026,
             docs/gap.md), its impulse bending (r = 8) leaves that case unnamed.
+        min_refit_move: a candidate whose refit ended at the point its start search chose (off
+            zero), none of its parameters moved by this many typical scales, is not named, whatever
+            its held-out closure (:func:`stuck_at_start`; 0: off). Added 4 Dec 2026 (session 29):
+            linen's quick diagnosis named a vertical wind of exactly its start point, -0.30 m/s,
+            closure 0.52, the failure mode the outline pass had shown on the MuJoCo null case.
         hold_dynamics: refit an imaging or timing candidate (and sets of them) with the base's
             dynamics parameters held at the base refit, only the candidate and the outline offset
             moving: they re-render the same motion. Off by default: measured on the grips pass
@@ -227,6 +232,7 @@ class ClothDiagnoseConfig:
     hold_dynamics: bool = False
     multirate: str = "1"
     damping: str = "explicit"
+    min_refit_move: float = 0.01
 
     def validate(self) -> None:
         """Raise :class:`ClothGapError` naming the field when a setting is not usable."""
@@ -254,6 +260,8 @@ class ClothDiagnoseConfig:
             v = float(getattr(self, k))
             if not (np.isfinite(v) and v > 0):
                 raise ClothGapError(f"gap.cloth.diagnose.{k} must be a positive number, got {v!r}")
+        if not (np.isfinite(self.min_refit_move) and self.min_refit_move >= 0):
+            raise ClothGapError(f"gap.cloth.diagnose.min_refit_move must be >= 0, got {self.min_refit_move!r}")
         for k in ("min_closure", "min_excess"):
             v = float(getattr(self, k))
             if not np.isfinite(v):
@@ -615,6 +623,17 @@ def effect_start(prob: Problem, theta0: np.ndarray, effect: str, mults: list[flo
         r = prob.residual(th)
         cost.append(float(r @ r))
     return starts[int(np.argmin(cost))], len(starts)
+
+
+def stuck_at_start(start: np.ndarray, end: np.ndarray, scale: np.ndarray, tol: float) -> bool:
+    """Whether a refit ended where its start search put it: the start is off zero (a point of the
+    search, not the model without the effect) and no parameter moved by ``tol`` typical scales.
+    Such a refit's held-out closure belongs to a sampled point on a chaotic loss, not to a fit.
+    ``tol`` 0: never."""
+    start, end, scale = (np.asarray(a, float) for a in (start, end, scale))
+    if tol <= 0 or not np.any(start != 0.0):
+        return False
+    return bool(np.max(np.abs(end - start) / scale) < tol)
 
 
 def global_search(prob: Problem, theta0: np.ndarray, n_evals: int, width: float = 3.0, seed: int = 0
@@ -1106,6 +1125,8 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         n_fev = cfg.max_nfev if nfev is None else int(nfev)
         th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, n_fev, free), cfg.blur_thresholds)
         n_sims[0] += m.n_sims
+        sl_new = m.slices[effects[-1]]
+        stuck = search and stuck_at_start(th0[sl_new], th[sl_new], m.x_scale()[sl_new], cfg.min_refit_move)
         g = pe.gap_per_frame(th, allf)
         if "time_jitter" in effects:
             # the model claims every frame its own time error, and a held-out frame's is not in
@@ -1122,7 +1143,7 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
                "train_closure": (tr_before - tr_after) / max(tr_before - floor_train_mean, 0.05 * floor_train_mean),
                "heldout_times_fitted": "time_jitter" in effects,
                "gap_per_frame_after_px": g.tolist(), "params": {}, "theta": th.tolist(), "nfev": info["nfev"],
-               "starts_tried": n_starts}
+               "starts_tried": n_starts, "stuck_at_start": bool(stuck)}
         sd = np.sqrt(np.clip(np.diag(info["cov"]), 0, None))
         for e in effects:
             sl = m.slices[e]
@@ -1155,7 +1176,7 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         held-out values are not identified, must close that much of the training excess with white
         time errors instead."""
         ho0 = before if prev is None else prev["heldout_after_px"]
-        if ho0 - floor_mean <= cfg.min_excess * floor_mean:
+        if ho0 - floor_mean <= cfg.min_excess * floor_mean or res.get("stuck_at_start"):
             return False
         if added == "time_jitter":
             return bool(train_closure(res, prev) >= cfg.min_closure

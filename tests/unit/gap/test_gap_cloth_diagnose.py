@@ -315,6 +315,21 @@ def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_
     assert none.verdict == "no gap beyond the noise floor"
 
 
+def test_a_refit_stuck_at_its_start_point_is_recognised():
+    """The guard of ``min_refit_move``: a refit that ends where its start search put it (off zero)
+    is stuck; one that moved, or that started from zero (no effect), is not; tol 0 turns it off."""
+    from vidsim.gap.cloth_diagnose import stuck_at_start
+
+    sc = np.array([0.3, 0.3, 0.3])
+    linen = ([0.0, 0.0, -0.3], [3.6e-6, 1.3e-6, -0.2999974])  # the quick linen diagnosis's wind (m/s)
+    assert stuck_at_start(*linen, sc, 0.01)
+    assert not stuck_at_start(*linen, sc, 0.0)
+    assert not stuck_at_start([0.0, 0.0, -0.3], [0.0, 0.0, -0.25], sc, 0.01)  # moved 0.17 scales
+    assert not stuck_at_start([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], sc, 0.01)  # started from "off"
+    with pytest.raises(cloth_diagnose.ClothGapError, match="min_refit_move"):
+        ClothDiagnoseConfig(min_refit_move=-1.0).validate()
+
+
 def test_region_settings_are_checked():
     with pytest.raises(cloth_diagnose.ClothGapError, match="region"):
         ClothDiagnoseConfig(region="edges").validate()
