@@ -83,6 +83,10 @@ def run(cfg: DictConfig) -> None:
     obj = make_objective(trials, cfg)
     t_feat = time.perf_counter() - t0
     space = obj.space
+    if int(fc.n_candidates) < 1:
+        raise ClothStageError(f"cloth.fit.n_candidates must be >= 1 (points handed to the selection), got {fc.n_candidates}")
+    if fc.method == "cmaes" and not 0 < float(fc.cma_sigma0) <= 1:
+        raise ClothStageError(f"cloth.fit.cma_sigma0 must be in (0, 1] (unit-cube step), got {fc.cma_sigma0}")
     n_grid = int(fc.grid_levels) ** len(fc.grid_params)
     total = n_grid + int(fc.budget)
     label = "+".join(t.name for t in trials)
@@ -91,7 +95,7 @@ def run(cfg: DictConfig) -> None:
     log = out / "evals.jsonl"
     prog = Progress(total, f"fit_cloth {label}", every_s=5.0, enabled=cfg.log.progress)
     acfg = AnnealConfig(budget=int(fc.budget), cooling=float(fc.cooling), evals_per_T=int(fc.evals_per_T),
-                        step=float(fc.step), min_step=float(fc.min_step), seed=int(fc.seed))
+                        step=float(fc.step), min_step=float(fc.min_step), seed=int(fc.seed), name="cloth.fit")
     n_before = obj.n_evals
     wrapped = _Progressed(obj, prog)
     wrapped.space = space  # fit() reads objective.space

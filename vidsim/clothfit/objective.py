@@ -228,6 +228,8 @@ class ClothObjective:
         self.model = model
         self.features = features
         self.alpha = float(alpha)
+        if not (np.isfinite(self.alpha) and self.alpha >= 0):
+            raise ObjectiveError(f"cloth.fit.alpha (silhouette weight) must be finite and >= 0, got {alpha}")
         unknown = set(fixed or {}) - set(ESTIMATED_NAMES)
         if unknown:
             raise ObjectiveError(f"cloth.fit.fixed: unknown parameter(s) {sorted(unknown)}")

@@ -68,7 +68,12 @@ def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, b
     if bad:
         raise ObjectiveError(f"cloth.fit.grid_params {bad} are not estimated parameters {names}")
     if method not in ("anneal", "cmaes"):
-        raise ObjectiveError(f"fit method must be 'anneal' or 'cmaes', got {method!r}")
+        raise ObjectiveError(f"cloth.fit.method must be 'anneal' or 'cmaes', got {method!r}")
+    if grid_params and levels < 1:
+        raise ObjectiveError(f"cloth.fit.grid_levels must be >= 1 (values per grid parameter), got {levels}; "
+                             f"for no grid set cloth.fit.grid_params=[]")
+    if budget < 1:
+        raise ObjectiveError(f"cloth.fit.budget must be >= 1 (evaluations after the grid), got {budget}")
     with EvalCache(objective, cache_path, cache_context) as f:
         dims = [names.index(p) for p in grid_params]
         pts = grid_points(dims, levels, n=len(names)) if dims else np.full((1, len(names)), 0.5)
@@ -77,7 +82,8 @@ def fit(objective: ClothObjective, *, grid_params: list[str], levels: int = 4, b
         if method == "anneal":
             cfg = anneal_cfg or AnnealConfig()
             cfg = AnnealConfig(budget=budget, T0=cfg.T0, cooling=cfg.cooling, evals_per_T=cfg.evals_per_T,
-                               reset_factor=cfg.reset_factor, step=cfg.step, min_step=cfg.min_step, seed=seed)
+                               reset_factor=cfg.reset_factor, step=cfg.step, min_step=cfg.min_step, seed=seed,
+                               name=cfg.name)
             res = anneal(f, u0, cfg)
             u_best, f_best = res.best_u, res.best_f
         else:

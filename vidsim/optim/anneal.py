@@ -16,6 +16,7 @@ killed run resumes through :class:`vidsim.optim.cache.EvalCache` (see there).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -37,6 +38,7 @@ class AnnealConfig:
         step: initial simplex edge in the unit cube.
         min_step: the smallest edge used when a reset shrinks the simplex.
         seed: random seed (fluctuations).
+        name: the config prefix that error messages name (e.g. ``cloth.fit``).
     """
 
     budget: int = 600
@@ -47,18 +49,26 @@ class AnnealConfig:
     step: float = 0.15
     min_step: float = 0.02
     seed: int = 0
+    name: str = "anneal"
 
     def __post_init__(self) -> None:
         from vidsim.errors import ConfigError
 
+        p = self.name
         if self.budget < 1:
-            raise ConfigError(f"anneal.budget must be >= 1, got {self.budget}")
+            raise ConfigError(f"{p}.budget must be >= 1, got {self.budget}")
+        if self.T0 is not None and not (math.isfinite(self.T0) and self.T0 >= 0):
+            raise ConfigError(f"{p}: the initial temperature must be finite and >= 0 (or None), got {self.T0}")
         if not 0 < self.cooling < 1:
-            raise ConfigError(f"anneal.cooling must be in (0, 1), got {self.cooling}")
+            raise ConfigError(f"{p}.cooling must be in (0, 1), got {self.cooling}")
+        if self.evals_per_T < 1:
+            raise ConfigError(f"{p}.evals_per_T must be >= 1, got {self.evals_per_T}")
         if self.reset_factor <= 1:
-            raise ConfigError(f"anneal.reset_factor must be > 1, got {self.reset_factor}")
+            raise ConfigError(f"{p}.reset_factor must be > 1, got {self.reset_factor}")
         if not 0 < self.step <= 1:
-            raise ConfigError(f"anneal.step must be in (0, 1], got {self.step}")
+            raise ConfigError(f"{p}.step must be in (0, 1], got {self.step}")
+        if not 0 < self.min_step <= self.step:
+            raise ConfigError(f"{p}.min_step must be in (0, step = {self.step}], got {self.min_step}")
 
 
 @dataclass

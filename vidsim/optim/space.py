@@ -48,9 +48,17 @@ class Space:
         return lo, hi, lg
 
     def to_unit(self, theta: np.ndarray) -> np.ndarray:
+        """Parameter values (unit of each axis) to the unit cube (values outside the box map
+        outside [0, 1]). A non-positive or NaN value on a log axis has no image: ConfigError."""
         lo, hi, lg = self._lo_hi()
         th = np.asarray(theta, float)
-        v = np.where(lg, np.log(np.maximum(th, 1e-300)), th)
+        bad = np.broadcast_to(lg, th.shape) & ~(th > 0)
+        if np.any(bad):
+            idx = tuple(np.argwhere(bad)[0])
+            ax = self.axes[idx[-1]]
+            raise ConfigError(f"parameter '{ax.name}' = {float(th[idx])!r}: its axis is logarithmic "
+                              f"([{ax.lo}, {ax.hi}]), so values must be > 0")
+        v = np.where(lg, np.log(np.where(lg, th, 1.0)), th)
         return (v - lo) / (hi - lo)
 
     def from_unit(self, u: np.ndarray) -> np.ndarray:

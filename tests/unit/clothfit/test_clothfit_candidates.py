@@ -45,3 +45,33 @@ def test_a_second_seed_in_the_same_folder_gets_its_own_candidates(tmp_path):
     c2 = candidates(r2.points, np.r_[r2.grid_values, r2.trace], space, 3)
     ca = candidates(alone.points, np.r_[alone.grid_values, alone.trace], space, 3)
     assert c2 == ca
+
+
+def test_fit_settings_that_cannot_run_are_refused_by_their_config_names():
+    """grid_levels 0 made an empty grid and a crash in argmin; an annealing schedule's errors name
+    cloth.fit.* (the keys a user sets), not the optimiser's internal names."""
+    import pytest
+
+    from vidsim.clothfit.objective import ObjectiveError
+    from vidsim.clothfit.study import fit
+    from vidsim.errors import ConfigError
+    from vidsim.optim.anneal import AnnealConfig
+
+    space = Space.from_config({"stretch": {"lo": 20.0, "hi": 4000.0, "log": True}})
+
+    class Flat:
+        def __init__(self) -> None:
+            self.space = space
+
+        def __call__(self, u):
+            return 1.0, {}
+
+    with pytest.raises(ObjectiveError, match=r"cloth\.fit\.grid_levels.*got 0"):
+        fit(Flat(), grid_params=["stretch"], levels=0, budget=5)
+    with pytest.raises(ObjectiveError, match=r"cloth\.fit\.budget"):
+        fit(Flat(), grid_params=["stretch"], levels=2, budget=0)
+    with pytest.raises(ConfigError, match=r"cloth\.fit\.step"):
+        AnnealConfig(step=2.0, name="cloth.fit")
+    # a valid schedule runs the grid and then exactly the budget
+    r = fit(Flat(), grid_params=["stretch"], levels=2, budget=3, anneal_cfg=AnnealConfig(evals_per_T=2, name="cloth.fit"))
+    assert r.n_evals == 2 + 3

@@ -98,3 +98,23 @@ def test_grid_search_and_space():
         Axis("k", 0.0, 1.0, log=True)
     with pytest.raises(ConfigError, match="budget"):
         AnnealConfig(budget=0)
+
+
+def test_bad_schedules_and_log_values_name_what_is_wrong():
+    """A schedule that cannot run, and a value a log axis cannot map, are refused by name (the
+    config prefix the caller gives), never run on as a silent -inf or an endless loop."""
+    with pytest.raises(ConfigError, match=r"cloth\.fit\.cooling"):
+        AnnealConfig(cooling=1.0, name="cloth.fit")
+    with pytest.raises(ConfigError, match=r"cloth\.fit\.evals_per_T"):
+        AnnealConfig(evals_per_T=0, name="cloth.fit")
+    with pytest.raises(ConfigError, match=r"min_step"):
+        AnnealConfig(step=0.1, min_step=0.2)
+    with pytest.raises(ConfigError, match="temperature"):
+        AnnealConfig(T0=float("nan"))
+    sp = Space((Axis("d", 0.0, 10.0), Axis("k", 1e-6, 1e-2, log=True)))
+    with pytest.raises(ConfigError, match=r"'k' = -1\.0.*logarithmic"):
+        sp.to_unit(np.array([[1.0, 1e-4], [2.0, -1.0]]))
+    with pytest.raises(ConfigError, match="'k'"):
+        sp.to_unit(np.array([1.0, np.nan]))
+    # a linear axis takes zero and negatives (outside the box maps outside [0, 1])
+    assert np.allclose(sp.to_unit(np.array([-5.0, 1e-2])), [-0.5, 1.0])
