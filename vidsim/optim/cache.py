@@ -40,7 +40,10 @@ def fingerprint(*objs: Any) -> str:
     def feed(x: Any, depth: int = 0) -> None:
         if depth > 12:
             raise ValueError("fingerprint: nesting deeper than 12 levels (a cycle?)")
-        if x is None or isinstance(x, (bool, int, str)):
+        if isinstance(x, str):  # length-prefixed: no string can mimic the separators of another
+            b = x.encode()
+            h.update(f"str:{len(b)}:".encode() + b)
+        elif x is None or isinstance(x, (bool, int)):
             h.update(f"{type(x).__name__}:{x};".encode())
         elif isinstance(x, float):
             h.update(f"f:{float(x).hex()};".encode())

@@ -86,6 +86,8 @@ def test_fingerprint_sees_every_bit_and_ignores_key_order() -> None:
     assert fingerprint(_Settings(12, 0.5)) == fingerprint(_Settings(12, 0.5))
     with pytest.raises(TypeError):
         fingerprint({1, 2})
+    # strings cannot mimic the separators: before the length prefix these two hashed the same
+    assert fingerprint(["a;str:b"]) != fingerprint(["a", "b"])
 
 
 def test_keep_only_leaves_the_runs_own_records_and_moves_the_rest(tmp_path) -> None:
