@@ -118,3 +118,24 @@ def test_real_webm_uses_container_timestamps(shared_data):
     # variable frame rate near 31 fps: not a constant 1/30 s
     assert 1 / 40 < np.median(dt) < 1 / 25
     assert dt.max() - dt.min() > 1e-3
+
+
+def test_a_finished_folder_replaces_the_old_one_and_its_stale_truth(tmp_path):
+    """replace_dir: the new folder lands under the output's name, the old one and the files that
+    belonged with it (its truth beside it) are gone, and nothing is left aside."""
+    from vidsim.io.atomic import replace_dir
+
+    out, tmp = tmp_path / "clip", tmp_path / ".clip.part"
+    out.mkdir()
+    (out / "old.txt").write_text("old")
+    write_truth(out, {"old": True})
+    tmp.mkdir()
+    (tmp / "new.txt").write_text("new")
+    replace_dir(tmp, out, stale=(truth_path(out),))
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert not truth_path(out).exists()  # the caller writes the new truth after the swap
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["clip"]
+    # and into an empty place
+    tmp.mkdir()
+    replace_dir(tmp, tmp_path / "fresh")
+    assert (tmp_path / "fresh").is_dir() and not tmp.exists()

@@ -29,7 +29,8 @@ from vidsim.cloth import ClothParams
 from vidsim.clothfit.film import FilmSettings, film_cloth, rotate_about_center, twin_swatch
 from vidsim.clothfit.rig import SkirtBody
 from vidsim.config import camera_from_config, projector_from_config, to_plain
-from vidsim.io.footage import read_calibration, write_footage, write_truth
+from vidsim.io.atomic import replace_dir
+from vidsim.io.footage import read_calibration, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.cloth import (
@@ -112,10 +113,8 @@ def run(cfg: DictConfig) -> None:
         contact_sheet(frames[nb:], tmp / "contact_sheet.png")
     truth.update({"camera": cam.to_dict(), "projector": proj_true.to_dict(), "effects": effects,
                   "config": to_plain(cfg.cloth)})
+    replace_dir(tmp, out, stale=(truth_path(out),))
     write_truth(out, _plain(truth))
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
     print(f"reality_cloth: wrote {out}", flush=True)
 
 

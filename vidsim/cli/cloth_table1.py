@@ -17,7 +17,6 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app

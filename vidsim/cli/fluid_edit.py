@@ -39,7 +39,7 @@ from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid.pipeline import run_edit, video_fields
 from vidsim.fluid.viz import arrow_grid
-from vidsim.io.atomic import atomic_path, write_json, write_npz, write_text
+from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
 from vidsim.io.footage import read_footage
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
@@ -277,9 +277,7 @@ def run(cfg: DictConfig) -> None:
         flat = {k: v for k, v in summary.items() if not isinstance(v, dict)}
         flat.update({f"fraction_in_sink_{k}": v for k, v in per_sink.items()})
         write_text(tmp / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in flat.items()))
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
     ckpt.unlink(missing_ok=True)
 
 

@@ -21,6 +21,7 @@ from vidsim.fluid.pipeline import prepare_gray_frames
 from vidsim.io.footage import read_image, write_footage
 from vidsim.log import make_logger
 from vidsim.report.figures import contact_sheet
+from vidsim.io.atomic import replace_dir
 
 # the frames of each recording, in time order (the jet: exposures A and B of pair 1)
 PIV_FILES = {"karman": [f"PIVlab_Karman_0{i}.bmp" for i in range(1, 5)],
@@ -52,9 +53,7 @@ def run(cfg: DictConfig) -> None:
                 "camera_note": "nominal image-plane camera (fluid stages work in pixels, no pose)"}
         write_footage(tmp, frames, np.arange(T) / p.fps, {"camera": nominal_camera(W, H)}, meta)
         contact_sheet(frames, tmp / "contact_sheet.png")
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
     print(f"fluid_piv_footage: {p.name}: {T} frames {W}x{H} -> {out}", flush=True)
 
 

@@ -20,7 +20,6 @@ and the ``cloth`` node it films and fits with) is unchanged, as the rigid suite 
 
 from __future__ import annotations
 
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -30,7 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 from vidsim.cli._app import stage_app
 from vidsim.cli.gap_suite import finished_case, headline, select_cases, write_confusion, write_shrinkage
 from vidsim.errors import ConfigError
-from vidsim.io.atomic import write_json
+from vidsim.io.atomic import replace_dir, write_json
 from vidsim.log.progress import Progress
 
 
@@ -102,9 +101,7 @@ def run(cfg: DictConfig) -> None:
             "scene_config": OmegaConf.to_container(cc.scene, resolve=True)}
     write_json(tmp / "suite.json", summ)
     print(f"gap_cloth_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
 
 
 main = stage_app("gap_cloth_suite", run)

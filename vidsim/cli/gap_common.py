@@ -11,6 +11,7 @@ import numpy as np
 
 from vidsim.gap.rigid_diagnose import RigidDiagnosis
 from vidsim.report.figures import save_figure
+from vidsim.io.atomic import replace_dir
 
 FLOOR_LABEL = "noise floor (free pose per frame)"
 
@@ -35,9 +36,7 @@ def write_diagnosis(d: Any, out: Path, inputs: dict, masks: np.ndarray, stage: s
         log_diagnosis(lg, d, masks)
     print(f"{stage} {title}: {d.verdict} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
           f"floor {d.floor_test.mean():.1f} px, {d.seconds:.0f} s)", file=sys.stderr)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
 
 
 def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: str = FLOOR_LABEL) -> None:

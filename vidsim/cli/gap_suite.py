@@ -17,7 +17,6 @@ crash in one case) keeps every finished case whose stored key (its case entry, `
 from __future__ import annotations
 
 import json
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -29,7 +28,7 @@ from vidsim.cli._app import stage_app
 from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
 from vidsim.errors import ConfigError
 from vidsim.gap.rigid_model import GapError
-from vidsim.io.atomic import write_json, write_text
+from vidsim.io.atomic import replace_dir, write_json, write_text
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
@@ -175,9 +174,7 @@ def run(cfg: DictConfig) -> None:
             "diagnose_config": OmegaConf.to_container(cfg.gap.diagnose, resolve=True)}
     write_json(tmp / "suite.json", summ)
     print(f"gap_suite: {summ['headline']} in {summ['seconds']:.0f} s", file=sys.stderr)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
 
 
 def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:

@@ -35,7 +35,7 @@ from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective
 from vidsim.cli.posterior_rigid import summary_csv  # the same summary.csv columns as the rigid stage
 from vidsim.cloth import PARAM_UNITS
 from vidsim.config import to_plain
-from vidsim.io.atomic import write_text, write_yaml
+from vidsim.io.atomic import replace_dir, write_text, write_yaml
 from vidsim.log.progress import Progress
 from vidsim.optim.cache import fingerprint
 from vidsim.posterior.cloth import ClothPosteriorSettings, FrameEval, cloth_posterior, read_eval_log
@@ -214,9 +214,7 @@ def run(cfg: DictConfig) -> None:
     rounds = [(int(m.group(1)), p) for p in tmp.glob("chain_r*.npz") if (m := re.fullmatch(r"chain_r(\d+)\.npz", p.name))]
     last = max(rounds)[1]
     shutil.copyfile(last, tmp / "chain.npz")
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
     print(f"posterior_cloth: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "
           f"ESS {diag['ess']:.0f}, surrogate max error {check['max_abs_error_logp']:.3g} log-density units "
           f"(ok {check['ok']}, roughness sd {check['roughness_sd_logp']:.3g}, consistent "

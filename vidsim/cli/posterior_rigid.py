@@ -14,7 +14,6 @@ as scalars). Never reads truth.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +23,7 @@ from vidsim.cli._app import stage_app
 from vidsim.cli._rigid import read_fit, read_masks
 from vidsim.config import to_plain
 from vidsim.errors import ConfigError
-from vidsim.io.atomic import write_text, write_yaml
+from vidsim.io.atomic import replace_dir, write_text, write_yaml
 from vidsim.io.footage import read_calibration, read_footage
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
@@ -128,9 +127,7 @@ def run(cfg: DictConfig) -> None:
         nat_point = np.array([r["point"] for r in post.summary])
         save_figure(corner_figure(post.samples(), post.names, post.units, nat_point), tmp / "corner.png")
         save_figure(correlation_figure(post.corr, post.names), tmp / "correlation.png")
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    replace_dir(tmp, out)
     print(f"posterior_rigid: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "
           f"ESS {diag['ess']:.0f}, multimodal {diag['multimodal']}, {diag['seconds']:.0f} s")
 

@@ -15,7 +15,8 @@ from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.config import camera_from_config, to_plain
-from vidsim.io.footage import read_calibration, write_footage, write_truth
+from vidsim.io.atomic import replace_dir
+from vidsim.io.footage import read_calibration, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.demo import box_mesh, demo_motion
@@ -64,10 +65,8 @@ def run(cfg: DictConfig) -> None:
         meta = {"scene": "demo", "object": {"shape": "box", "size_m": [0.3, 0.1, 0.1]}, "fps_nominal": cfg.reality.fps}
         write_footage(tmp, frames, times, est_cams, meta)
         contact_sheet(frames, tmp / "contact_sheet.png")
+    replace_dir(tmp, out, stale=(truth_path(out),))
     write_truth(out, {**truth, "camera": cam.to_dict(), "config": to_plain(cfg)})
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
 
 
 main = stage_app("reality_demo", run)

@@ -19,7 +19,7 @@ from vidsim.config import to_plain
 from vidsim.errors import ConfigError, VidsimError
 from vidsim.fluid.footage import SYNTHETIC_SCENES, nominal_camera
 from vidsim.fluid.viz import arrow_grid
-from vidsim.io.atomic import write_npz
+from vidsim.io.atomic import replace_dir, write_npz
 from vidsim.io.footage import truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
@@ -63,12 +63,10 @@ def run(cfg: DictConfig) -> None:
                 "camera_note": "nominal image-plane camera (fluid stages work in pixels, no pose)"}
         write_footage(tmp, foot.frames, times, {"camera": nominal_camera(W, H)}, meta)
         contact_sheet(foot.frames, tmp / "contact_sheet.png")
+    replace_dir(tmp, out, stale=(truth_path(out), truth_arrays_path(out)))
     write_npz(truth_arrays_path(out), velocity=foot.velocity, solid=foot.solid, dye=foot.dye.astype(np.float16))
     write_truth(out, {**foot.meta, "arrays": truth_arrays_path(out).name,
                       "velocity_units": "px/frame, frame t -> t+1, shape (T-1, H, W, 2)", "config": to_plain(cfg.fluid.reality)})
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
     print(f"reality_fluid: wrote {T} frames to {out}", flush=True)
 
 

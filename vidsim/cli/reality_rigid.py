@@ -26,8 +26,8 @@ from vidsim.cli._app import stage_app
 from vidsim.cli._rigid import log_image, plain
 from vidsim.config import to_plain
 from vidsim.config.rigid import validate_rigid
-from vidsim.io.atomic import write_npz
-from vidsim.io.footage import write_footage, write_truth
+from vidsim.io.atomic import replace_dir, write_npz
+from vidsim.io.footage import truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.rigid import RigidEffects, RigidRealityConfig, make_throw
@@ -76,11 +76,10 @@ def run(cfg: DictConfig) -> None:
             lg.mask("truth/camera/mask", th.masks[i])
     truth = {**th.truth, "camera": th.true_camera.to_dict(), "calibration_camera": th.camera.to_dict(),
              "config": {"rigid": to_plain(cfg.rigid), "effects": to_plain(cfg.effects)}}
+    masks_path = out.parent / f"{out.name}.truth_masks.npz"
+    replace_dir(tmp, out, stale=(truth_path(out), masks_path))
+    write_npz(masks_path, masks=th.masks, times=th.times)
     write_truth(out, truth)
-    write_npz(out.parent / f"{out.name}.truth_masks.npz", masks=th.masks, times=th.times)
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
     prog.update(note="truth written beside the footage")
     print(f"reality_rigid: {len(th.frames)} frames ({n_bg} background-only) -> {out}")
 

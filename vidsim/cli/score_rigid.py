@@ -17,7 +17,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli._rigid import RigidStageError, load_yaml, read_fit, read_masks
+from vidsim.cli._rigid import RigidStageError, read_fit, read_masks
 from vidsim.io.atomic import write_yaml
 from vidsim.io.footage import read_calibration, read_truth, truth_path
 from vidsim.rigid.evaluate import CRITERIA, score

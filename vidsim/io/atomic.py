@@ -39,10 +39,35 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        with open(tmp_path, "rb+") as fh:  # on disk before the rename: a crash cannot leave it empty
+            os.fsync(fh.fileno())
         os.replace(tmp_path, path)
     finally:
         if tmp_path.exists():
             tmp_path.unlink()
+
+
+def replace_dir(tmp: str | os.PathLike, out: str | os.PathLike, stale: tuple = ()) -> None:
+    """Put a stage's finished staging folder ``tmp`` in the place of ``out``.
+
+    The old ``out`` is renamed aside first and deleted only after the new one is in place, so a
+    kill never leaves a half-deleted folder under the output's name. ``stale``: files that belong
+    with the old ``out`` (e.g. its truth beside it), removed before the swap so that they are never
+    found beside the new folder; the caller writes their new versions after this returns.
+    """
+    import shutil
+
+    tmp, out = Path(tmp), Path(out)
+    for p in stale:
+        Path(p).unlink(missing_ok=True)
+    old = None
+    if out.exists():
+        old = out.with_name(f".{out.name}.old-{os.getpid()}")
+        shutil.rmtree(old, ignore_errors=True)
+        os.replace(out, old)
+    os.replace(tmp, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def _to_plain(obj: Any) -> Any:
