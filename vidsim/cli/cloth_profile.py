@@ -53,12 +53,11 @@ def run(cfg: DictConfig) -> None:
     n_points = obj.space.dim * int(pc.points)
     prog = Progress(n_points, "profile_cloth" + (f" (others re-optimised, {reopt} evaluations per point)"
                                                  if reopt else ""), enabled=cfg.log.progress)
-    from contextlib import nullcontext
-
     from vidsim.optim.cache import EvalCache
 
-    # a profile's evaluations are logged (keyed by the objective's fingerprint): a killed stage resumes
-    with (EvalCache(obj, out / "evals.jsonl", context=obj.fingerprint()) if reopt else nullcontext()) as f_unit:
+    # every evaluation (slice or profile) is logged, keyed by the objective's fingerprint: a killed
+    # stage resumes (at the full setting a slice is ~70 two-trial evaluations, minutes of work)
+    with EvalCache(obj, out / "evals.jsonl", context=obj.fingerprint()) as f_unit:
         rinfo: dict = {}
         profs = profile_parameters(obj, theta, points=int(pc.points), tol=float(pc.tol), max_width=float(pc.max_width),
                                    on_eval=lambda n, v, e: prog.update(note=f"{n} = {v:.3g}: E = {e:.4g}"),

@@ -177,24 +177,28 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
     chains: list[np.ndarray] = []
     lps: list[np.ndarray] = []
     rs = None
+    def move_aside(why: str) -> None:
+        k = 1
+        while (stale := Path(path).with_name(f"stale-{k}.{Path(path).name}")).exists():
+            k += 1
+        Path(path).rename(stale)
+        print(f"{path}: {why}; moved to {stale.name}, sampling afresh", file=sys.stderr, flush=True)
+
     if path is not None and Path(path).is_file():
         z = dict(np.load(path, allow_pickle=False))
         if z["chain"].shape[1:] != (W, D):
-            raise PosteriorError(f"chain file {path}: holds {z['chain'].shape[1:]} (walkers, dim), "
-                                 f"expected ({W}, {D}); delete it or use the same settings")
-        chains, lps = [z["chain"]], [z["log_prob"]]
-        rs = _state_tuple(z)
+            # written with other settings (walkers or parameters changed since): kept aside, not continued
+            move_aside(f"holds {z['chain'].shape[1:]} (walkers, dim) where this run has ({W}, {D})")
+        else:
+            chains, lps = [z["chain"]], [z["log_prob"]]
+            rs = _state_tuple(z)
     rng = np.random.default_rng(cfg.seed)
     lp_one = (lambda x: float(log_prob(np.asarray(x)[None, :])[0])) if vectorize else log_prob
     if chains and not _same_posterior(log_prob, chains[0][-1], lps[0][-1], vectorize):
         # the chain was sampled from another posterior (its footage or settings changed since it
         # was killed): keep it aside and start afresh rather than continue a foreign chain
-        k = 1
-        while (stale := Path(path).with_name(f"stale-{k}.{Path(path).name}")).exists():
-            k += 1
-        Path(path).rename(stale)
-        print(f"{path}: its walkers' saved log densities do not match this posterior (inputs changed since "
-              f"it was written); moved to {stale.name}, sampling afresh", file=sys.stderr, flush=True)
+        move_aside("its walkers' saved log densities do not match this posterior (inputs changed since it was "
+                   "written)")
         chains, lps, rs = [], [], None
     L = np.linalg.cholesky(cov + 1e-300 * np.eye(D)) if np.all(np.linalg.eigvalsh(cov) > 0) else np.diag(
         np.sqrt(np.maximum(np.diag(cov), 1e-30)))

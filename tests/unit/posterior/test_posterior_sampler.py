@@ -66,6 +66,11 @@ def test_a_chain_of_another_posterior_is_not_resumed(tmp_path) -> None:
     assert (tmp_path / "stale-1.b.npz").is_file()
     fresh = sample(shifted, MEAN, COV, cfg200, tmp_path / "c.npz")
     np.testing.assert_array_equal(again.chain, fresh.chain)
+    # a chain with another number of walkers (settings changed since the kill) is kept aside too,
+    # not continued and not a dead end that needs a hand-deleted file
+    cfg12 = SamplerConfig(n_walkers=12, chunk=50, min_steps=100, max_steps=100, seed=5)
+    other = sample(shifted, MEAN, COV, cfg12, tmp_path / "b.npz")
+    assert other.n_evals == 100 * 12 and (tmp_path / "stale-2.b.npz").is_file()
 
 
 def test_vectorised_resume_tolerates_batch_rounding(tmp_path) -> None:
@@ -90,9 +95,7 @@ def test_bad_settings_name_the_field(tmp_path) -> None:
         sample(_logp, MEAN, COV, SamplerConfig(n_walkers=4))
     with pytest.raises(PosteriorError, match="max_steps"):
         sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, min_steps=500, max_steps=100))
-    sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=50, max_steps=50), tmp_path / "c.npz")
-    with pytest.raises(PosteriorError, match="walkers, dim"):
-        sample(_logp, MEAN, COV, SamplerConfig(n_walkers=10, chunk=50, min_steps=50, max_steps=50), tmp_path / "c.npz")
+    # (a saved chain of other dimensions is moved aside: test_a_chain_of_another_posterior_is_not_resumed)
 
 
 def test_autocorr_time_of_ar1_chain(rng) -> None:
