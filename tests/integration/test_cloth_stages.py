@@ -109,6 +109,7 @@ def test_diagnose_cloth_stage_on_twin_footage(twin_footage):
         d = json.loads((out / "diagnosis.json").read_text())
         assert (out / "diagnosis.png").is_file() and (out / "diagnosis.rrd").is_file()
         assert not (out.parent / f".{out.name}.part").exists()
+        assert not (out.parent / f".{out.name}.passes").exists()  # the passes' checkpoint, gone once written
         assert d["frames"] == list(range(0, 20, 2)) and len(d["gap_per_frame_px"]) == 10
         assert d["inputs"]["estimated"] == ["stretch"]
         assert set(d["screen"]) >= {"wind", "time_offset", "lens_k1"}

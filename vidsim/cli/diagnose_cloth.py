@@ -27,6 +27,7 @@ wind, gravity tilt, damping, anisotropic stretch), so read its verdicts with tha
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 
@@ -109,17 +110,22 @@ def run(cfg: DictConfig) -> None:
     prog = Progress(n_pass * (6 + dcfg.top_k + int(dcfg.pairs)), "diagnose_cloth steps", enabled=cfg.log.progress)
     print(f"diagnose_cloth {fo.name}: {f.sil.shape[0]} frames (frame stride {stride}), {mc.resolution}x"
           f"{mc.resolution} model, base {estimated}", file=sys.stderr, flush=True)
+    # each finished pass (near the grips, the outline) is kept here until the report is written: a
+    # killed stage resumes after its last finished pass
+    out = Path(cfg.paths.out)
+    ckpt = out.with_name(f".{out.name}.passes")
     try:
         d = diagnose_cloth(trial, params, estimated, resolution=int(mc.resolution), frame_stride=stride,
                            settle_s=float(mc.settle_s), settle_bath=float(mc.settle_bath), cfg=dcfg,
                            feature_settings=feature_settings(cfg), alpha=float(cfg.cloth.fit.alpha),
-                           progress=lambda s: prog.update(note=s))
+                           progress=lambda s: prog.update(note=s), checkpoint=ckpt)
     except ClothGapError as e:
         raise ClothStageError(f"{cfg.gap.paths.fit} on {fo}: {e}") from e
     inputs = {"footage": str(fo), "fit": str(cfg.gap.paths.fit), "estimated": estimated,
               "model": OmegaConf.to_container(mc, resolve=True)}
-    write_diagnosis(d, Path(cfg.paths.out), inputs, trial.sil, "diagnose_cloth", fo.name, cfg.log.rerun,
+    write_diagnosis(d, out, inputs, trial.sil, "diagnose_cloth", fo.name, cfg.log.rerun,
                     floor_label="noise floor (a twin of the fit, filmed and segmented)")
+    shutil.rmtree(ckpt, ignore_errors=True)
 
 
 main = stage_app("diagnose_cloth", run)

@@ -121,7 +121,6 @@ def run(cfg: DictConfig) -> None:
     d = fit_to_dict(res, body)
     d["mismatch_px"] = mism.tolist()
     d["inputs"] = {"footage": str(fo.path), "masks": str(mpath), "fit_settings": asdict(fc)}
-    write_yaml(out / "fit.yaml", d)
     ov = with_inset(overlay(fo.frames[res.frames], sim, obs), obs | sim)
     fps = float(fo.meta.get("fps", 1.0 / np.median(np.diff(times))))
     write_animation(out / f"overlay.{cfg.rigid.overlay}", ov, fps)
@@ -141,6 +140,8 @@ def run(cfg: DictConfig) -> None:
             lg.scalar("metric/mismatch_px", float(mism[k]))
             lg.mesh3d("world/fit/body", corners[k], F, color=(0.1, 0.8, 0.2))
         lg.series("optim/objective", np.asarray(res.history))
+    # the main output last: a kill while the figures are written leaves no new fit.yaml beside old figures
+    write_yaml(out / "fit.yaml", d)
     alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else ""
     print(f"fit_rigid: mean IoU {res.mean_iou:.4f} over {len(res.frames)} frames, {res.n_starts} starts, "
           f"{res.seconds:.1f} s{alt} -> {out / 'fit.yaml'}")

@@ -20,6 +20,7 @@ and the ``cloth`` node it films and fits with) is unchanged, as the rigid suite 
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -27,7 +28,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.gap_suite import finished_case, headline, select_cases, write_confusion, write_shrinkage
+from vidsim.cli.gap_suite import finished_or_reused, headline, select_cases, write_confusion, write_shrinkage
 from vidsim.errors import ConfigError
 from vidsim.io.atomic import replace_dir, write_json
 from vidsim.log.progress import Progress
@@ -80,19 +81,22 @@ def run(cfg: DictConfig) -> None:
     t0 = time.perf_counter()
     for n in names:
         key = {"case": cases[n], **common}
-        done = finished_case(tmp / "cases", n, key, companions=())
+        done = finished_or_reused(tmp / "cases", out / "cases", n, key, companions=())
         if done is not None:
             scores[n] = done
             resumed.append(n)
-            prog.update(note=f"{n}: resumed from the checkpoint")
+            prog.update(note=f"{n}: kept (finished earlier with the same settings)")
             continue
         try:
-            d, s, _ = run_case(cases[n], scene, dcfg, cfg.cloth)
+            # within a case, the fit's evaluations and the diagnosis's finished passes are kept too
+            d, s, _ = run_case(cases[n], scene, dcfg, cfg.cloth, checkpoint=tmp / "running" / n)
         except ClothGapError as e:
             raise ConfigError(f"gap.cloth.cases.{n}: {e}") from e
         scores[n] = s
         write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": d.to_dict()})
+        shutil.rmtree(tmp / "running" / n, ignore_errors=True)
         prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+    shutil.rmtree(tmp / "running", ignore_errors=True)
     write_confusion(*confusion(scores), tmp)
     write_shrinkage(scores, tmp)
     summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,

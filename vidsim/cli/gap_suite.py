@@ -53,6 +53,23 @@ def headline(scores: dict[str, dict]) -> dict:
     }
 
 
+def finished_or_reused(folder: Path, prev: Path, name: str, key: dict,
+                       companions: tuple[str, ...] = (".png",)) -> dict | None:
+    """The score of case ``name`` when this run's staging ``folder`` holds it finished with the same
+    ``key`` (an interrupted run), or else the finished output's ``prev`` folder does (an earlier
+    complete run: its files are copied in, so adding a case to a finished suite runs that case
+    only); None when neither has it."""
+    import shutil
+
+    done = finished_case(folder, name, key, companions)
+    if done is None and prev.resolve() != folder.resolve():
+        done = finished_case(prev, name, key, companions)
+        if done is not None:
+            for ext in companions + (".json",):  # the json last: it marks the case as finished
+                shutil.copy2(prev / f"{name}{ext}", folder / f"{name}{ext}")
+    return done
+
+
 def finished_case(folder: Path, name: str, key: dict, companions: tuple[str, ...] = (".png",)) -> dict | None:
     """The score of case ``name`` from an interrupted run, when it finished with the same ``key``
     (and its ``companions``, files written before the json, exist)."""
@@ -150,11 +167,11 @@ def run(cfg: DictConfig) -> None:
     with make_logger(tmp / "suite.rrd", "vidsim.gap_suite", cfg.log.rerun) as lg:
         for n in names:
             key = {"case": cases[n], **common}
-            done = finished_case(tmp / "cases", n, key)
+            done = finished_or_reused(tmp / "cases", out / "cases", n, key)
             if done is not None:
                 scores[n] = done
                 resumed.append(n)
-                prog.update(note=f"{n}: resumed from the checkpoint")
+                prog.update(note=f"{n}: kept (finished earlier with the same settings)")
                 continue
             try:
                 d, s, masks, _ = run_case(cases[n], dcfg, scene)

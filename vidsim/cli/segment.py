@@ -42,7 +42,6 @@ def run(cfg: DictConfig) -> None:
         raise RigidStageError(f"{fo.path}: the segmentation found no object in any of the {len(masks)} frames "
                               "(empty silhouette in every frame): is the object in view and different from "
                               "the background? (settings: rigid.segment)")
-    write_npz(out / "masks.npz", masks=masks.astype(bool), times=np.asarray(fo.times, float))
     write_yaml(out / "segment.yaml", {
         "footage": str(fo.path), "n_frames": int(len(masks)), "frames_with_object": int(shown.size),
         "first_frame_with_object": int(shown[0]), "last_frame_with_object": int(shown[-1]),
@@ -50,6 +49,9 @@ def run(cfg: DictConfig) -> None:
     pick = shown[np.linspace(0, shown.size - 1, min(8, shown.size)).round().astype(int)]
     contact_sheet(overlay(fo.frames[pick], masks[pick]), out / "segment_sheet.png",
                   titles=[f"frame {i}: {area[i]} px" for i in pick])
+    # the masks (what fit_rigid reads) last, so a new masks.npz is never found beside an old
+    # summary or sheet
+    write_npz(out / "masks.npz", masks=masks.astype(bool), times=np.asarray(fo.times, float))
     print(f"segment: object in {shown.size}/{len(masks)} frames ({secs:.1f} s) -> {out / 'masks.npz'}")
 
 

@@ -57,9 +57,11 @@ slip (kinematic: it moves the driven corners) is named with closure 0.57 (docs/g
 from __future__ import annotations
 
 import dataclasses
-
+import os
+import pickle
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -70,6 +72,8 @@ from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, 
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
+from vidsim.io.atomic import atomic_path
+from vidsim.optim.cache import fingerprint
 
 BAD_RESIDUAL = 1.0
 IMAGING = ("lens_k1", "motion_blur", "rolling_shutter", "time_offset", "time_rate")
@@ -893,7 +897,7 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
 def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list[str], *,
                    resolution: int = 12, frame_stride: int = 2, settle_s: float = 0.5, settle_bath: float = 0.0,
                    cfg: ClothDiagnoseConfig | None = None, feature_settings=None, alpha: float = 0.1,
-                   progress=None) -> ClothDiagnosis:
+                   progress=None, checkpoint: str | os.PathLike | None = None) -> ClothDiagnosis:
     """Diagnose the gap between a cloth fit and its footage (blind: no truth).
 
     With ``cfg.region == "split"`` two diagnoses run: the candidates of :data:`GRIP_EFFECTS` on the
@@ -912,17 +916,33 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             footage (for the floor's segmentation and the metric terms; default settings if None).
         alpha: the seed metric's silhouette weight.
         progress: optional ``progress(note)`` called after each step.
+        checkpoint: a folder where each finished pass is kept (``pass_<region>.pkl``, keyed by a
+            fingerprint of everything the pass depends on): a killed diagnosis rerun with the same
+            folder resumes after its last finished pass, with the same result. None: no checkpoint.
     """
     cfg = cfg or ClothDiagnoseConfig()
     cfg.validate()
     kw = dict(resolution=resolution, frame_stride=frame_stride, settle_s=settle_s, settle_bath=settle_bath,
               feature_settings=feature_settings, alpha=alpha)
-    if cfg.region != "split":
-        d = _diagnose_region(trial, params0, estimated, cfg=cfg, progress=progress, **kw)
+    def run_pass(sub: ClothDiagnoseConfig, **more) -> ClothDiagnosis:
+        path = Path(checkpoint) / f"pass_{sub.region}.pkl" if checkpoint is not None else None
+        key = fingerprint("cloth diagnosis pass", trial, params0, list(estimated), kw, sub,
+                          more.get("camera_candidates")) if path is not None else None
+        d = _load_pass(path, key)
+        if d is not None:
+            note(f"{sub.region}: resumed from {path}")
+            return d
+        d = _diagnose_region(trial, params0, estimated, cfg=sub, **more, **kw)
         for v in list(d.screen.values()) + list(d.refits.values()):
-            v["region"] = cfg.region
+            v["region"] = sub.region
+        if path is not None:
+            with atomic_path(path) as tmp:
+                tmp.write_bytes(pickle.dumps({"key": key, "diagnosis": d}))
         return d
+
     note = progress or (lambda s: None)
+    if cfg.region != "split":
+        return run_pass(cfg, progress=progress)
     # the outline pass keeps the whole library: judged there alone (candidates split by kind), every
     # dynamics candidate gets refitted and, the response being chaotic, one of the start search's
     # perturbations can land low by luck (measured: the MuJoCo null case named wind, closure 0.51,
@@ -935,12 +955,20 @@ def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list
             continue
         sub = dataclasses.replace(cfg, region=region, candidates=cands)
         # the outline pass also splits the camera part off the whole library's imaging candidates
-        d = _diagnose_region(trial, params0, estimated, cfg=sub, camera_candidates=list(cfg.candidates),
-                             progress=lambda s, r=region: note(f"{r}: {s}"), **kw)
-        for v in list(d.screen.values()) + list(d.refits.values()):
-            v["region"] = region
-        passes[region] = d
+        passes[region] = run_pass(sub, camera_candidates=list(cfg.candidates),
+                                  progress=lambda s, r=region: note(f"{r}: {s}"))
     return combine_passes(passes)
+
+
+def _load_pass(path: Path | None, key: str | None) -> ClothDiagnosis | None:
+    """A pass kept by an earlier, killed run (None: none, or one of other inputs or code)."""
+    if path is None or not path.is_file():
+        return None
+    try:
+        doc = pickle.loads(path.read_bytes())
+    except Exception:  # noqa: BLE001 -- unreadable (another version's classes): recompute
+        return None
+    return doc["diagnosis"] if isinstance(doc, dict) and doc.get("key") == key else None
 
 
 def combine_passes(passes: dict[str, ClothDiagnosis]) -> ClothDiagnosis:

@@ -45,6 +45,7 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Optional
 
 import numpy as np
@@ -306,12 +307,14 @@ def background_noise(bg: np.ndarray) -> float:
     return float(np.median([np.std(b[i + 1] - b[i]) for i in range(b.shape[0] - 1)]) / np.sqrt(2.0))
 
 
-def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothParams, dict]:
+def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None, cache_path=None) -> tuple[ClothParams, dict]:
     """The project's fit at reduced size: coarse grid over bend/stretch/shear, then annealing.
 
     Args:
         fit_trial: the case's :class:`vidsim.clothfit.objective.Trial` (``ClothCase.fit_trial``:
             features, frame times, measured corners, devices; never the truth).
+        cache_path: evaluation log (a killed fit resumes; keyed by the objective's fingerprint);
+            None keeps it in memory.
     """
     from omegaconf import OmegaConf
 
@@ -333,7 +336,8 @@ def fit_case(fit_trial, scene: ClothSceneConfig, cloth_cfg=None) -> tuple[ClothP
                          features=fs, alpha=float(c.fit.alpha))
     grid = [p for p in ("bend", "stretch", "shear") if p in scene.estimate]
     r = fit(obj, grid_params=grid, levels=int(scene.grid_levels), budget=int(scene.budget),
-            anneal_cfg=AnnealConfig(evals_per_T=6, step=0.12), seed=0)
+            anneal_cfg=AnnealConfig(evals_per_T=6, step=0.12), seed=0, cache_path=cache_path,
+            cache_context=obj.fingerprint() if cache_path is not None else None)
     return obj.params(r.theta, tr.density), {"score": float(r.score), "n_evals": int(r.n_evals)}
 
 
@@ -437,8 +441,9 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
 
 
 def run_case(case: dict, scene: ClothSceneConfig | None = None, dcfg: ClothDiagnoseConfig | None = None,
-             cloth_cfg=None, progress=None) -> tuple[ClothDiagnosis, dict, ClothCase]:
-    """Film, fit (the project's reduced fit), diagnose blind, score.
+             cloth_cfg=None, progress=None, checkpoint=None) -> tuple[ClothDiagnosis, dict, ClothCase]:
+    """Film, fit (the project's reduced fit), diagnose blind, score. ``checkpoint``: a folder for
+    the fit's evaluation log and the diagnosis's finished passes (a killed case resumes there).
 
     Returns:
         (diagnosis, score, case).
@@ -453,13 +458,15 @@ def run_case(case: dict, scene: ClothSceneConfig | None = None, dcfg: ClothDiagn
     t = time.perf_counter()
     cc = make_case(case, scene, c)
     t_real = time.perf_counter() - t
-    p_fit, info = fit_case(cc.fit_trial, scene, c)
+    ck = Path(checkpoint) if checkpoint is not None else None
+    p_fit, info = fit_case(cc.fit_trial, scene, c, cache_path=ck / "fit_evals.jsonl" if ck is not None else None)
     t_fit = time.perf_counter() - t - t_real
     fs = FeatureSettings(**OmegaConf.to_container(c.features, resolve=True))
     diag = diagnose_cloth(cc.trial, p_fit, list(scene.estimate), resolution=int(scene.resolution),
                           frame_stride=int(scene.frame_stride), settle_s=float(scene.settle_s_model),
                           settle_bath=float(scene.settle_bath_model), cfg=dcfg,
-                          feature_settings=fs, alpha=float(c.fit.alpha), progress=progress)
+                          feature_settings=fs, alpha=float(c.fit.alpha), progress=progress,
+                          checkpoint=ck / "passes" if ck is not None else None)
     sc = score_case(case, diag, cc.truth, scene)
     sc.update(footprints(case, cc, scene, c))
     sc.update({"reality_seconds": t_real, "fit_seconds": t_fit, "diagnose_seconds": diag.seconds,

@@ -315,6 +315,35 @@ def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_
     assert none.verdict == "no gap beyond the noise floor"
 
 
+def test_a_killed_split_diagnosis_resumes_after_its_last_finished_pass(null_case, tmp_path, monkeypatch):
+    """Each finished pass is kept in the checkpoint folder: a rerun after a kill in the outline pass
+    does not redo the grips pass, and a pass kept for other inputs is not reused."""
+    _, _, cc = null_case
+    calls: list[str] = []
+
+    def fake_region(trial, params0, estimated, *, cfg, progress=None, camera_candidates=None, **kw):
+        calls.append(cfg.region)
+        if cfg.region == "outline" and calls.count("outline") == 1:
+            raise KeyboardInterrupt  # the kill
+        return _fake_diagnosis(["time_offset"] if cfg.region == "grips" else [], 50.0, cfg.region,
+                               {"time_offset": {"params": {}}})
+
+    monkeypatch.setattr(cloth_diagnose, "_diagnose_region", fake_region)
+    from vidsim.cloth import ClothParams
+
+    params = ClothParams()
+    ck = tmp_path / "passes"
+    with pytest.raises(KeyboardInterrupt):
+        diagnose_cloth(cc.trial, params, ["bend"], checkpoint=ck)
+    assert calls == ["grips", "outline"] and (ck / "pass_grips.pkl").is_file()
+    d = diagnose_cloth(cc.trial, params, ["bend"], checkpoint=ck)
+    assert calls == ["grips", "outline", "outline"]  # the grips pass came from the checkpoint
+    assert d.named == ["time_offset"] and d.refits["grips:time_offset"]["region"] == "grips"
+    # other inputs (another base) do not reuse the kept passes
+    diagnose_cloth(cc.trial, params, ["bend", "stretch"], checkpoint=ck)
+    assert calls[3:] == ["grips", "outline"]
+
+
 def test_a_refit_stuck_at_its_start_point_is_recognised():
     """The guard of ``min_refit_move``: a refit that ends where its start search put it (off zero)
     is stuck; one that moved, or that started from zero (no effect), is not; tol 0 turns it off."""

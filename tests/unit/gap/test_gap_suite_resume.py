@@ -77,11 +77,13 @@ def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls
     with pytest.raises(RuntimeError):
         stage.run(_cfg(out, "gap.diagnose.top_k=2"))
     crash_at["seed"] = None
+    assert made == [201, 202, 203, 201, 202]  # the finished output's cases (top_k=3) did not match
     stage.run(_cfg(out, "gap.diagnose.top_k=3", "gap.only=[null_a,lens_k1]"))
-    # top_k=3 is the default: null_a's checkpoint (written with top_k=2) is stale, so it reruns too
-    assert made == [201, 202, 203, 201, 202, 201, 203]
+    # top_k=3 is the default: the staged null_a (written with top_k=2) is stale, but the finished
+    # output's null_a and lens_k1 match, so they are copied in and nothing runs
+    assert made == [201, 202, 203, 201, 202]
     summ = json.loads((out / "suite.json").read_text())
-    assert summ["resumed_cases"] == [] and sorted(summ["cases"]) == ["lens_k1", "null_a"]
+    assert summ["resumed_cases"] == ["null_a", "lens_k1"] and sorted(summ["cases"]) == ["lens_k1", "null_a"]
     assert sorted(p.name for p in (out / "cases").iterdir()) == ["lens_k1.json", "lens_k1.png",
                                                                  "null_a.json", "null_a.png"]
 
@@ -95,7 +97,7 @@ def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
     made: list[int] = []
     crash = {"seed": 305}
 
-    def fake_run_case(case, scene, dcfg, cloth_cfg=None, progress=None):
+    def fake_run_case(case, scene, dcfg, cloth_cfg=None, progress=None, checkpoint=None):
         if case["seed"] == crash["seed"]:
             raise RuntimeError("killed mid-suite")
         made.append(case["seed"])
@@ -119,6 +121,12 @@ def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
     assert made == [320, 302, 305]
     summ = json.loads((out / "suite.json").read_text())
     assert summ["resumed_cases"] == ["null_a", "wind"]
+    # one case added to the finished suite: only that case runs
+    cstage.run(cfg("gap.cloth.only=[null_a,wind,lens_k1,time_offset]"))
+    assert made == [320, 302, 305, 304]
+    made.pop()
+    cstage.run(cfg())  # and back: the three are kept, time_offset leaves the output
+    assert made == [320, 302, 305] and not (out / "cases" / "time_offset.json").exists()
     rows = (out / "shrinkage.csv").read_text().splitlines()
     assert rows[0].endswith("effect_footprint_px,noise_footprint_px") and len(rows) == 4
     assert rows[1].startswith("null_a,none,none,True") and rows[1].endswith(",12.50")
