@@ -73,6 +73,27 @@ def test_cli_bad_key_gives_one_clear_line(tmp_path):
     assert r.returncode != 0
     assert "camera.fxx" in r.stderr
     assert "Traceback" not in r.stderr
+    r = subprocess.run(
+        [sys.executable, "-m", "vidsim.cli.reality_demo", f"paths.results={tmp_path}", f"paths.out={tmp_path}/o",
+         "+reality.fpss=3"], capture_output=True, text=True, timeout=120,
+    )
+    assert r.returncode == 2 and "reality.fpss" in r.stderr and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("override,bad", [("+rigid.fit.max_iter=5", "rigid.fit.max_iter"),
+                                          ("++cloth.reality.wind.x=1", "cloth.reality.wind"),
+                                          ("+fluid.flow.sigma=2", "fluid.flow.sigma")])
+def test_a_key_added_with_plus_under_a_schema_is_an_error(override, bad):
+    """Hydra adds any '+' key and the stage would ignore it silently (a typo passed as a setting);
+    under free-form mappings (cloth.fit.fixed, gap.cloth.diagnose, gap cases) '+' is how settings
+    are given and passes."""
+    from vidsim.cli._app import unknown_added_key
+
+    msg = unknown_added_key(_compose(override), [override])
+    assert msg is not None and bad in msg and "unknown" in msg
+    for ok in ("+cloth.fit.fixed.bend=1e-5", "+gap.cloth.diagnose.top_k=2", "+gap.cloth.scene.budget=31",
+               "+gap.cases.magnus9={label: magnus, seed: 9}"):
+        assert unknown_added_key(_compose(ok), [ok]) is None, ok
 
 
 def test_cli_missing_calibration_names_the_file(tmp_path):

@@ -127,10 +127,45 @@ def _precheck_overrides(name: str, args: list[str]) -> None:
 
     try:
         with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            compose("config", overrides=args)
+            cfg = compose("config", overrides=args)
     except HydraException as e:
         first = str(e).strip().splitlines()[0]
         cause = e.__cause__
         why = str(cause).strip().splitlines()[0] if cause is not None and str(cause).strip() else ""
         print(f"vidsim {name}: error: {first}{' ' + why if why and why not in first else ''}", file=sys.stderr)
         sys.exit(2)
+    bad = unknown_added_key(cfg, args)
+    if bad:
+        print(f"vidsim {name}: error: {bad}", file=sys.stderr)
+        sys.exit(2)
+
+
+def unknown_added_key(cfg: DictConfig, args: list[str]) -> str | None:
+    """A key added with ``+``/``++`` under a schema node (a dataclass: ``rigid.fit``, ...) that has
+    no such field: Hydra adds it and the stage would silently ignore it (a typo such as
+    ``+rigid.fit.max_iter=5``). Keys under free-form mappings (``cloth.fit.fixed``,
+    ``gap.cloth.diagnose``, ...) are what ``+`` is for and pass. Returns the message, or None."""
+    import dataclasses
+
+    from omegaconf import OmegaConf
+
+    for a in args:
+        if not a.startswith("+") or "=" not in a:
+            continue
+        key = a.lstrip("+").split("=", 1)[0]
+        if "/" in key or "." not in key or key.startswith("hydra."):
+            continue  # a config group (+group=option) or Hydra's own settings
+        parts = key.split(".")
+        node = cfg
+        for i, part in enumerate(parts):
+            typ = OmegaConf.get_type(node) if OmegaConf.is_config(node) else None
+            if typ is not None and dataclasses.is_dataclass(typ):
+                fields = [f.name for f in dataclasses.fields(typ)]
+                if part not in fields:
+                    where = ".".join(parts[:i]) or "the root"
+                    return (f"config key {'.'.join(parts[: i + 1])} (added with '+') is unknown: {where} has "
+                            f"{', '.join(fields)}")
+            if not OmegaConf.is_dict(node) or part not in node:
+                break
+            node = node[part]
+    return None
