@@ -48,6 +48,28 @@ def _truncated_video(f: Path, shared: Path | None) -> None:
     _edit_yaml(f / "calibration.yaml", lambda d: d["camera"].update(width=640, height=480))
 
 
+def _binary_meta(f, _):
+    (f / "meta.yaml").write_bytes(bytes(range(128, 256)) * 4)  # random-looking bytes, not UTF-8
+
+
+def _n_frames_mismatch(f, _):
+    _edit_yaml(f / "meta.yaml", lambda d: d.update(n_frames=50))
+
+
+def _zero_fps(f, _):
+    _edit_yaml(f / "meta.yaml", lambda d: d.update(fps=0))
+
+
+def _truncated_jpeg(f, _):
+    for p in sorted((f / "frames").iterdir()):
+        img = cv2.imread(str(p))
+        p.unlink()
+        cv2.imwrite(str(p.with_suffix(".jpg")), img)
+    j = f / "frames" / "000001.jpg"
+    data = j.read_bytes()
+    j.write_bytes(data[: len(data) // 2])
+
+
 def _zero_frames(f, _):
     for p in (f / "frames").iterdir():
         p.unlink()
@@ -110,6 +132,13 @@ CASES = [
     ("negative stiffness", _nothing, ["cloth.reality.twin_params.stretch=-300"], "cloth.reality.twin_params.stretch = -300"),
     ("NaN in a cloth parameter", _nothing, ["cloth.reality.twin_params.bend=nan"], "cloth.reality.twin_params.bend = nan"),
     ("missing footage folder", None, [], "footage folder is missing"),
+    # found by an audit of the stages' bad input (4 Dec 2026)
+    ("meta.yaml not text", _binary_meta, [], "meta.yaml: not a text YAML file"),
+    ("meta n_frames vs frames", _n_frames_mismatch, [], "field 'n_frames' = 50 but the folder holds 4 frames"),
+    ("zero frame rate in meta", _zero_fps, [], "field 'fps' = 0 is not valid"),
+    ("truncated JPEG frame", _truncated_jpeg, [], "000001.jpg: truncated JPEG"),
+    ("NaN in any setting", _nothing, ["fluid.flow.temporal_sigma=nan"], "fluid.flow.temporal_sigma = nan"),
+    ("unknown key added with +", _nothing, ["+reality.fpss=3"], "reality.fpss (added with '+') is unknown"),
 ]
 
 

@@ -5,11 +5,11 @@ File reading lives here (the CLI edge), never below ``vidsim/rigid``. Every erro
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from vidsim.errors import FootageError, VidsimError
@@ -54,13 +54,9 @@ def segment_config(s: DictConfig | dict) -> SegmentConfig:
 
 def load_yaml(path: str | Path) -> Any:
     """A YAML file's content; a one-line error naming the file when missing or invalid."""
-    path = Path(path)
-    if not path.is_file():
-        raise RigidStageError(f"{path}: file is missing")
-    try:
-        return yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise RigidStageError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from e
+    from vidsim.io.footage import load_yaml as _load
+
+    return _load(path, RigidStageError)
 
 
 def read_masks(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
@@ -73,8 +69,8 @@ def read_masks(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             return masks_from_npz({k: z[k] for k in z.files}, where=str(path))
     except RigidBodyError as e:
         raise RigidStageError(str(e)) from e
-    except (OSError, ValueError) as e:
-        raise RigidStageError(f"{path}: not a readable .npz ({e})") from e
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+        raise RigidStageError(f"{path}: not a readable .npz, truncated or not written by segment ({e})") from None
 
 
 def read_fit(path: str | Path) -> tuple[FitResult, BoxBody]:

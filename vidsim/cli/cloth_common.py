@@ -16,7 +16,7 @@ from vidsim.clothfit.features import FeatureSettings, extract_features
 from vidsim.clothfit.objective import ClothObjective, ModelSettings, Trial, space_from_config
 from vidsim.clothfit.rig import RigError, SkirtBody
 from vidsim.errors import VidsimError
-from vidsim.io.footage import read_footage, read_meta
+from vidsim.io.footage import load_yaml, read_footage, read_meta
 from vidsim.log.progress import Progress
 from vidsim.render.projector import Projector
 
@@ -37,6 +37,20 @@ class ClothStageError(VidsimError):
 def feature_settings(cfg: DictConfig) -> FeatureSettings:
     """:class:`FeatureSettings` from ``cloth.features``."""
     return FeatureSettings(**OmegaConf.to_container(cfg.cloth.features, resolve=True))
+
+
+def _meta_number(d: dict, key: str, where: str, unit: str, positive: bool = False, default: float | None = None
+                 ) -> float:
+    """A finite number from a meta.yaml mapping (> 0 with ``positive``); the error names the file and field."""
+    if key not in d and default is not None:
+        return float(default)
+    try:
+        v = float(d[key])
+    except (TypeError, ValueError, KeyError):
+        raise ClothStageError(f"{where}: field '{key}' = {d.get(key)!r} is not a number ({unit})") from None
+    if not np.isfinite(v) or (positive and v <= 0):
+        raise ClothStageError(f"{where}: field '{key}' = {v} must be {'> 0' if positive else 'finite'} ({unit})")
+    return v
 
 
 def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, with_frames: bool = False
@@ -72,16 +86,31 @@ def load_trial(folder: str | Path, cfg: DictConfig, name: str | None = None, wit
             raise ClothStageError(f"{folder}/meta.yaml: body has {body.n_frames} frames, expected {cloth_idx.size}")
         cp = np.zeros((cloth_idx.size, 0, 3))
     else:
-        cp = np.asarray(meta["corner_paths"], float)
+        try:
+            cp = np.asarray(meta["corner_paths"], float)
+        except (TypeError, ValueError):
+            raise ClothStageError(f"{folder}/meta.yaml: field 'corner_paths' must be numbers (metres), "
+                                  f"({cloth_idx.size}, 2, 3)") from None
         if cp.shape != (cloth_idx.size, 2, 3):
             raise ClothStageError(f"{folder}/meta.yaml: corner_paths has shape {cp.shape}, expected ({cloth_idx.size}, 2, 3)")
+        if not np.all(np.isfinite(cp)):
+            raise ClothStageError(f"{folder}/meta.yaml: field 'corner_paths' has non-finite values (metres expected)")
+    where = f"{folder}/meta.yaml"
+    density = _meta_number(meta, "areal_density", where, "kg/m^2", positive=True)
+    size = (_meta_number(meta, "size_m", where, "m", positive=True) if kind == "swatch"
+            else _meta_number(meta, "size_m", where, "m", default=0.0))
     pat = meta["projector_pattern"]
-    proj = Projector(fp.cameras["projector"], period_px=float(pat["period_px"]), power=float(pat.get("power", 1.0)),
-                     ambient=float(pat.get("ambient", 0.1)))
+    if not isinstance(pat, dict) or "period_px" not in pat:
+        raise ClothStageError(f"{where}: field 'projector_pattern' must be a mapping with 'period_px'")
+    period = _meta_number(pat, "period_px", f"{where}: projector_pattern", "px", positive=True)
+    if period <= 1:
+        raise ClothStageError(f"{where}: projector_pattern field 'period_px' = {period} must be > 1 px (a stripe period)")
+    proj = Projector(fp.cameras["projector"], period_px=period,
+                     power=_meta_number(pat, "power", f"{where}: projector_pattern", "-", default=1.0),
+                     ambient=_meta_number(pat, "ambient", f"{where}: projector_pattern", "-", default=0.1))
     fs = feature_settings(cfg)
     feats = extract_features(fp.frames, bg, fs)
-    tr = Trial(name or Path(folder).name, feats, fp.times[cloth_idx], cp, fp.camera, proj,
-               float(meta.get("size_m", 0.0)), float(meta["areal_density"]), body)
+    tr = Trial(name or Path(folder).name, feats, fp.times[cloth_idx], cp, fp.camera, proj, size, density, body)
     stride, most = int(cfg.cloth.model.frame_stride), int(cfg.cloth.model.max_frames)
     if not with_frames:
         return tr.strided(stride, most)
@@ -149,9 +178,7 @@ def read_selected(paths: list[str]) -> list[dict[str, Any]]:
     """The ``params.yaml`` documents of ``select_cloth`` (names a missing file)."""
     docs = []
     for p in paths:
-        if not Path(p).is_file():
-            raise ClothStageError(f"{p}: params.yaml is missing")
-        doc = yaml.safe_load(Path(p).read_text()) or {}
+        doc = load_yaml(p, ClothStageError, "params.yaml", mapping=True)
         if "params" not in doc:
             raise ClothStageError(f"{p}: field 'params' is missing")
         docs.append(doc)

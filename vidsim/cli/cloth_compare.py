@@ -22,7 +22,6 @@ import csv
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
@@ -65,7 +64,7 @@ def run(cfg: DictConfig) -> None:
     sets = {
         "anneal": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["anneal"]), lists["anneal"])],
         "cmaes": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["cmaes"]), lists["cmaes"])],
-        "joint": [params_from_dict(yaml.safe_load(Path(p).read_text())["params"], p) for p in lists["joint"]],
+        "joint": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["joint"]), lists["joint"])],
     }
     E = np.zeros((n, len(METHODS)))
     prog = Progress(E.size, "compare_cloth held-out", enabled=cfg.log.progress)

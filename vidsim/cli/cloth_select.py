@@ -20,7 +20,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
@@ -30,6 +29,7 @@ from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log.progress import Progress
 from vidsim.optim.anneal import AnnealConfig, anneal
 from vidsim.optim.cache import EvalCache
+from vidsim.io.footage import load_yaml
 
 
 def run(cfg: DictConfig) -> None:
@@ -43,7 +43,7 @@ def run(cfg: DictConfig) -> None:
         p = Path(f)
         if not p.is_file():
             raise ClothStageError(f"{p}: fit.yaml is missing")
-        docs.append(yaml.safe_load(p.read_text()))
+        docs.append(load_yaml(p, ClothStageError, "fit.yaml", mapping=True))
     trials = [load_trial(f, cfg) for f in footage]
     objs = [make_objective([tr], cfg) for tr in trials]
     cands = []

@@ -17,14 +17,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_from_dict, read_selected
 from vidsim.cloth import ESTIMATED_NAMES
 from vidsim.io.atomic import write_text, write_yaml
-from vidsim.io.footage import read_truth
+from vidsim.io.footage import load_yaml, read_truth
 from vidsim.report.figures import save_figure
 
 
@@ -38,9 +37,7 @@ def run(cfg: DictConfig) -> None:
     if truth.get("kind") != "twin" or "params" not in truth:
         raise ClothStageError(f"{tc.footage}: its truth is not a twin reality's (kind = {truth.get('kind')!r})")
     sel = read_selected([str(tc.params)])[0]
-    if not Path(tc.profile).is_file():
-        raise ClothStageError(f"{tc.profile}: profile.yaml is missing")
-    prof = (yaml.safe_load(Path(tc.profile).read_text()) or {}).get("profiles", {})
+    prof = load_yaml(tc.profile, ClothStageError, "profile.yaml", mapping=True).get("profiles", {})
     est = params_from_dict(sel["params"], str(tc.params))
     true = params_from_dict(truth["params"], f"truth of {tc.footage}")
     obj = make_objective([load_trial(tc.footage, cfg)], cfg)

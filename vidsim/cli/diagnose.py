@@ -25,6 +25,27 @@ class DiagnoseError(VidsimError):
     """Bad input to the diagnose stage (missing file, mismatched shapes); names the file."""
 
 
+def _check_fit_fields(fit: dict, where: str, times) -> None:
+    """The fit's initial state: finite vectors of the right sizes, a non-zero quaternion and a t0
+    within the footage's time span; the error names the file and field."""
+    import numpy as np
+
+    for key, n, unit in (("position", 3, "m"), ("quaternion", 4, "-"), ("velocity", 3, "m/s"),
+                         ("omega_world", 3, "rad/s"), ("tilt", 1, "rad"), ("roll", 1, "rad"), ("t0", 1, "s")):
+        try:
+            v = np.asarray(fit[key], float).reshape(-1)
+        except (TypeError, ValueError):
+            raise DiagnoseError(f"{where}: field '{key}' = {fit[key]!r} is not numeric ({n} number(s), {unit})") from None
+        if v.size != n or not np.all(np.isfinite(v)):
+            raise DiagnoseError(f"{where}: field '{key}' = {fit[key]!r}: expected {n} finite number(s) ({unit})")
+    if np.linalg.norm(np.asarray(fit["quaternion"], float)) < 1e-9:
+        raise DiagnoseError(f"{where}: field 'quaternion' is zero (expected a rotation)")
+    t0, span = float(fit["t0"]), (float(np.min(times)), float(np.max(times)))
+    if not span[0] - 1.0 <= t0 <= span[1]:
+        raise DiagnoseError(f"{where}: field 't0' = {t0} s lies outside the footage's times {span[0]:.3f}-{span[1]:.3f} s "
+                            "(a fit of another footage?)")
+
+
 def run(cfg: DictConfig) -> None:
     from vidsim.cli._rigid import body_from_meta, load_yaml, read_masks
     from vidsim.gap.rigid_diagnose import diagnose_rigid
@@ -47,6 +68,7 @@ def run(cfg: DictConfig) -> None:
     missing = [k for k in ("position", "quaternion", "velocity", "omega_world", "tilt", "roll", "t0") if k not in fit]
     if missing:
         raise DiagnoseError(f"{cfg.gap.paths.fit}: missing field(s) {missing} (expected the fit_rigid stage's fit.yaml)")
+    _check_fit_fields(fit, str(cfg.gap.paths.fit), times)
     dcfg = diagnose_config(cfg.gap.diagnose)
     prog = Progress(4 + dcfg.top_k + int(dcfg.pairs), "diagnose steps", enabled=cfg.log.progress)
     try:

@@ -32,7 +32,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from vidsim.cli._app import stage_app
@@ -40,6 +39,7 @@ from vidsim.cli.cloth_common import ClothStageError, feature_settings, load_tria
 from vidsim.cli.gap_common import write_diagnosis
 from vidsim.errors import ConfigError
 from vidsim.log.progress import Progress
+from vidsim.io.footage import load_yaml
 
 
 def read_fit(path: str, cfg: DictConfig):
@@ -49,8 +49,8 @@ def read_fit(path: str, cfg: DictConfig):
     p = Path(path)
     if not p.is_file():
         raise ClothStageError(f"{p}: fit file is missing (give select_cloth's params.yaml or fit_cloth's fit.yaml)")
-    doc = yaml.safe_load(p.read_text()) or {}
-    if not isinstance(doc, dict) or not isinstance(doc.get("params"), dict):
+    doc = load_yaml(p, ClothStageError, mapping=True)
+    if not isinstance(doc.get("params"), dict):
         raise ClothStageError(f"{p}: field 'params' is missing (expected select_cloth's params.yaml or fit_cloth's fit.yaml)")
     params = params_from_dict(doc["params"], str(p))
     # the fit file's own list; else the config's, where empty means the whole space (as in fit_cloth)

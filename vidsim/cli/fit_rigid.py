@@ -30,7 +30,7 @@ from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 from vidsim.rigid.body import RigidBodyError
-from vidsim.rigid.fit import fit_throw
+from vidsim.rigid.fit import FAIL_COST, fit_throw
 from vidsim.rigid.outputs import corner_paths, fit_to_dict, overlay, simulated_masks
 
 
@@ -115,6 +115,11 @@ def run(cfg: DictConfig) -> None:
         res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc, on_step=on_step)
     except RigidBodyError as e:
         raise RigidStageError(f"{meta_path} / {mpath}: {e}") from e
+    failed = (not np.all(np.isfinite(res.states))) or (bool(res.history) and res.history[-1] >= FAIL_COST)
+    if failed:
+        raise RigidStageError(f"{meta_path}: initial_guess: every start failed to simulate (diverged or left the "
+                              f"view; best objective {res.history[-1] if res.history else float('nan'):.3g}): check "
+                              "the guess's units (position m, velocity m/s, omega_world rad/s) and t0 (s)")
     sim = simulated_masks(res, body, cam)
     obs = masks[res.frames]
     mism = (sim ^ obs).reshape(len(sim), -1).sum(1)

@@ -25,11 +25,11 @@ import hashlib
 import json
 import shutil
 import time
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
@@ -40,7 +40,7 @@ from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid.pipeline import run_edit, video_fields
 from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
-from vidsim.io.footage import read_footage
+from vidsim.io.footage import load_yaml, read_footage
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.report.figures import contact_sheet, save_figure
@@ -53,10 +53,7 @@ def load_edit(path: str | Path) -> tuple[EditSpec, dict[str, Any]]:
     path = Path(path)
     if not path.is_file():
         raise ConfigError(f"fluid.edit.spec={str(path)!r}: edit file is missing")
-    try:
-        d = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from None
+    d = load_yaml(path, ConfigError, "edit file")
     if not isinstance(d, dict):
         raise ConfigError(f"{path}: expected a mapping of edit keys, got {type(d).__name__}")
     try:
@@ -155,6 +152,10 @@ def run(cfg: DictConfig) -> None:
         spec = EditSpec.from_dict(raw)
     if ec.checkpoint_every < 1:
         raise ConfigError(f"fluid.edit.checkpoint_every={ec.checkpoint_every}, expected >= 1 iteration")
+    if not (np.isfinite(float(ec.video_fps)) and float(ec.video_fps) > 0):
+        raise ConfigError(f"fluid.edit.video_fps={ec.video_fps} is not valid: expected a finite rate > 0 fps")
+    if int(ec.gif_frames) < 1:
+        raise ConfigError(f"fluid.edit.gif_frames={ec.gif_frames}, expected >= 1 frame")
     n_frames = int(ec.frames) if ec.frames is not None else spec.render.frames
     if n_frames < 2:
         raise ConfigError(f"fluid.edit.frames={n_frames}, expected >= 2 output frames")
@@ -171,10 +172,17 @@ def run(cfg: DictConfig) -> None:
         fp = Path(ec.flow)
         if not fp.is_file():
             raise FootageError(f"fluid.edit.flow={str(fp)!r}: flow file is missing")
-        with np.load(fp) as z:
-            flow = z["flow"]
+        try:
+            with np.load(fp, allow_pickle=False) as z:
+                if "flow" not in z.files:
+                    raise FootageError(f"{fp}: no array 'flow' (arrays: {z.files}); give fluid_flow's flow.npz")
+                flow = z["flow"]
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+            raise FootageError(f"{fp}: not a readable .npz, truncated or not written by fluid_flow ({e})") from None
         if flow.shape != (frames.shape[0] - 1, *frames.shape[1:3], 2):
             raise FootageError(f"{fp}: flow shape {flow.shape} does not fit the footage {frames.shape}")
+        if not np.all(np.isfinite(flow)):
+            raise FootageError(f"{fp}: 'flow' has non-finite values (px/frame expected)")
     else:
         flow = estimate_flow(frames, temporal_sigma=float(cfg.fluid.flow.temporal_sigma))
     video_fields(flow[:1], spec)  # the grid must fit the footage (clear error before optimising)

@@ -19,7 +19,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.errors import ConfigError
+from vidsim.errors import ConfigError, FootageError
 from vidsim.fluid.flow import endpoint_error, estimate_flow
 from vidsim.fluid.viz import arrow_grid, color_wheel, flow_to_color
 from vidsim.io.atomic import write_json, write_npz, write_text
@@ -78,9 +78,13 @@ def run(cfg: DictConfig) -> None:
             raise ConfigError(f"fluid.flow.{key}={fc[key]!r}, expected one of {METHODS}")
     if fc.temporal_sigma < 0:
         raise ConfigError(f"fluid.flow.temporal_sigma={fc.temporal_sigma}, expected >= 0 frames")
+    if not str(cfg.paths.footage).strip():
+        raise ConfigError("paths.footage is empty: give the fluid footage folder")
     folder = Path(cfg.paths.footage)
     foot = read_footage(folder)
     frames = foot.frames
+    if frames.shape[0] < 2:
+        raise FootageError(f"{folder}: {frames.shape[0]} frame(s); the flow needs at least 2")
     out = Path(cfg.paths.out)
     name = folder.name
     t0 = time.perf_counter()

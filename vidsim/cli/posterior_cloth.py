@@ -27,7 +27,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cli._app import stage_app
@@ -42,6 +41,7 @@ from vidsim.posterior.cloth import ClothPosteriorSettings, FrameEval, cloth_post
 from vidsim.posterior.figures import corner_figure, correlation_figure
 from vidsim.posterior.sampler import SamplerConfig, correlation, summarize
 from vidsim.report.figures import save_figure
+from vidsim.io.footage import load_yaml
 
 
 def settings_from_config(pc: DictConfig) -> ClothPosteriorSettings:
@@ -55,9 +55,7 @@ def read_fits(paths: list[str]) -> tuple[list[dict], list[str], dict, dict]:
     """The fits' documents, their common estimated names, space and fixed values (checked equal)."""
     docs = []
     for p in paths:
-        if not Path(p).is_file():
-            raise ClothStageError(f"{p}: fit.yaml is missing")
-        d = yaml.safe_load(Path(p).read_text()) or {}
+        d = load_yaml(p, ClothStageError, "fit.yaml", mapping=True)
         for k in ("estimated", "config", "params"):
             if k not in d:
                 raise ClothStageError(f"{p}: field '{k}' is missing")
@@ -106,9 +104,7 @@ def run(cfg: DictConfig) -> None:
     if not fits or len(fits) != len(footage):
         raise ClothStageError(f"posterior.cloth.fits ({len(fits)}) and posterior.cloth.footage ({len(footage)}) "
                               "must be non-empty lists of one length (the fitted trials)")
-    if not Path(pc.params).is_file():
-        raise ClothStageError(f"{pc.params}: params.yaml is missing")
-    sel = yaml.safe_load(Path(pc.params).read_text()) or {}
+    sel = load_yaml(pc.params, ClothStageError, "params.yaml", mapping=True)
     if "params" not in sel:
         raise ClothStageError(f"{pc.params}: field 'params' is missing")
     docs, est, space_cfg, fixed = read_fits(fits)

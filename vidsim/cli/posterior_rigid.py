@@ -20,7 +20,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli._rigid import read_fit, read_masks
+from vidsim.cli._rigid import body_from_meta, read_fit, read_masks
 from vidsim.config import to_plain
 from vidsim.errors import ConfigError
 from vidsim.io.atomic import replace_dir, write_text, write_yaml
@@ -64,7 +64,10 @@ def run(cfg: DictConfig) -> None:
     cam = read_calibration(cfg.paths.calibration)["camera"] if cfg.paths.calibration else fo.camera
     if masks.shape[0] <= int(np.max(fit.frames)):
         raise ConfigError(f"{pc.paths.masks}: has {masks.shape[0]} frames but the fit uses frame {int(np.max(fit.frames))}")
-    gravity = float(fo.meta.get("gravity_magnitude", 9.81))
+    gravity = body_from_meta(fo.meta, f"{fo.path}/meta.yaml")[1]  # checked: a finite magnitude > 0
+    if masks.shape[1:] != (cam.height, cam.width):
+        raise ConfigError(f"posterior.rigid.paths.masks = {pc.paths.masks}: masks are {masks.shape[2]}x{masks.shape[1]} "
+                          f"but the camera is {cam.width}x{cam.height} (masks of another footage?)")
     obs = masks[fit.frames]
     alts = [{"params": c.params, "quaternion": c.q_base} for i, c in enumerate(fit.alternatives)
             if i in set(fit.distinct)] if fit.distinct else [

@@ -67,6 +67,10 @@ def validate(cfg: DictConfig) -> None:
     for key, v in _leaves_named(cfg, "noise_sigma"):  # every family's sensor noise
         _check(_finite(v) and v >= 0, key, v, ">= 0 (sensor noise, grey levels)")
     _validate_cloth_params(cfg)
+    for key, v in _float_leaves(cfg):  # no setting means anything as NaN: a `< 0` check lets it through
+        _check(not math.isnan(v), key, v, "a number (NaN given)")
+    _check(cfg.calibrate.max_rms_px > 0, "calibrate.max_rms_px", cfg.calibrate.max_rms_px, "> 0 px (the gate on the "
+           "calibration's reprojection error; .inf: no gate)")
     _check(cfg.calibrate.n_projector_views >= 3, "calibrate.n_projector_views", cfg.calibrate.n_projector_views, ">= 3 views")
 
 
@@ -87,6 +91,30 @@ def _leaves_named(node: Any, name: str, prefix: str = "") -> list[tuple[str, Any
             elif isinstance(v, DictConfig):
                 found += _leaves_named(v, name, key + ".")
     return found
+
+
+def _float_leaves(node: Any, prefix: str = "") -> list[tuple[str, float]]:
+    """``(dotted key, value)`` of every float leaf of a config tree (lists included)."""
+    out: list[tuple[str, float]] = []
+    if isinstance(node, DictConfig):
+        items = []
+        for k in node.keys():
+            if OmegaConf.is_missing(node, k):
+                continue
+            try:
+                items.append((f"{prefix}{k}", node[k]))
+            except Exception:  # an interpolation that only resolves elsewhere (e.g. ${hydra:...})
+                continue
+    elif isinstance(node, ListConfig):
+        items = [(f"{prefix.rstrip('.')}[{i}]", v) for i, v in enumerate(node)]
+    else:
+        return out
+    for key, v in items:
+        if isinstance(v, float):
+            out.append((key, v))
+        elif isinstance(v, (DictConfig, ListConfig)):
+            out += _float_leaves(v, key + ".")
+    return out
 
 
 def _validate_cloth_params(cfg: DictConfig) -> None:

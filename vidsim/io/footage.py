@@ -110,13 +110,28 @@ def write_truth(folder: str | os.PathLike, truth: dict[str, Any]) -> Path:
 
 
 # --------------------------------------------------------------------------- reading
-def _load_yaml(path: Path) -> Any:
+def load_yaml(path: str | os.PathLike, error: type[Exception] = FootageError, what: str = "file",
+              mapping: bool = False) -> Any:
+    """A YAML file's content; ``error`` (a one-line message naming the file) when it is missing,
+    not text (random bytes), not valid YAML, or, with ``mapping``, not a mapping (empty: ``{}``)."""
+    path = Path(path)
     if not path.is_file():
-        raise FootageError(f"{path}: file is missing")
+        raise error(f"{path}: {what} is missing")
     try:
-        return yaml.safe_load(path.read_text())
+        doc = yaml.safe_load(path.read_text())
+    except UnicodeDecodeError as e:
+        raise error(f"{path}: not a text YAML file (undecodable byte at offset {e.start})") from None
     except yaml.YAMLError as e:
-        raise FootageError(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from e
+        raise error(f"{path}: not valid YAML ({str(e).splitlines()[0]})") from None
+    if mapping:
+        doc = {} if doc is None else doc
+        if not isinstance(doc, dict):
+            raise error(f"{path}: expected a mapping of fields, got {type(doc).__name__}")
+    return doc
+
+
+def _load_yaml(path: Path) -> Any:
+    return load_yaml(path)
 
 
 def read_calibration(path: str | os.PathLike, frame_size: tuple[int, int] | None = None) -> dict[str, PinholeCamera]:
@@ -161,6 +176,12 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FootageError(f"{path}: image file is missing")
+    if path.suffix.lower() in (".jpg", ".jpeg"):
+        # OpenCV decodes a truncated JPEG with only a libjpeg warning (grey rows at the bottom)
+        with open(path, "rb") as fh:
+            fh.seek(max(0, path.stat().st_size - 2048))
+            if b"\xff\xd9" not in fh.read():
+                raise FootageError(f"{path}: truncated JPEG (no end-of-image marker)")
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise FootageError(f"{path}: not a readable image (corrupt or unsupported format)")
@@ -282,6 +303,17 @@ def read_footage(folder: str | os.PathLike, required_meta: tuple[str, ...] = (),
         raise FootageError(f"{folder}: no '{FRAME_DIR}/' folder and no video file ({', '.join(VIDEO_EXTS)})")
     cams = read_calibration(folder / "calibration.yaml", frame_size=(frames.shape[2], frames.shape[1]))
     meta = read_meta(folder / "meta.yaml", required=required_meta)
+    n_meta = meta.get("n_frames")
+    if n_meta is not None and max_frames is None and n_meta != frames.shape[0]:
+        raise FootageError(f"{folder / 'meta.yaml'}: field 'n_frames' = {n_meta!r} but the folder holds "
+                           f"{frames.shape[0]} frames")
+    for key in ("fps", "fps_nominal"):
+        if key in meta:
+            v = meta[key]
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) and v > 0
+            if not ok:
+                raise FootageError(f"{folder / 'meta.yaml'}: field '{key}' = {v!r} is not valid: expected a frame "
+                                   "rate > 0 (frames per second)")
     return Footage(frames=frames, times=times, cameras=cams, meta=meta, path=folder)
 
 

@@ -191,3 +191,21 @@ def test_skirt_error_is_the_mean_over_its_fold_seeded_members():
                      (dict(skirt_fold_seed=-1), "model_fold_seed")):
         with pytest.raises(ObjectiveError, match=f"cloth.skirt.{key}"):
             ClothObjective([tr], space, model=ModelSettings(skirt_rings=5, skirt_around=12, **bad), features=fs)
+
+
+def test_meta_numbers_of_a_cloth_footage_are_checked_by_file_and_field():
+    """load_trial's reading of meta.yaml numbers: a word, a NaN or a non-positive density is an
+    error naming the file and field (a word crashed in float(), a negative density was reported as
+    cloth.fit.fixed's)."""
+    import pytest
+
+    from vidsim.cli.cloth_common import ClothStageError, _meta_number
+
+    where = "f/meta.yaml"
+    assert _meta_number({"areal_density": 0.2}, "areal_density", where, "kg/m^2", positive=True) == 0.2
+    assert _meta_number({}, "power", where, "-", default=1.0) == 1.0
+    for bad, msg in (("heavy", "is not a number"), (float("nan"), "must be > 0"), (-0.2, "must be > 0"), (0, "must be > 0")):
+        with pytest.raises(ClothStageError, match=rf"f/meta\.yaml: field 'areal_density' .*{msg}"):
+            _meta_number({"areal_density": bad}, "areal_density", where, "kg/m^2", positive=True)
+    with pytest.raises(ClothStageError, match="'size_m' = None is not a number"):
+        _meta_number({}, "size_m", where, "m", positive=True)
