@@ -175,3 +175,13 @@ def test_valid_footage_passes(tmp_path):
     s = yaml.safe_load((out / "summary.yaml").read_text())
     assert s["n_frames"] == 4 and s["size_px"] == [64, 48]
     assert abs(s["frame_interval_s"]["median"] - 1 / 30) < 1e-9
+
+
+@pytest.mark.parametrize("override,expected", [("cloth.reality.exposure=0", "cloth.reality.exposure must be in (0, 1]"),
+                                               ("cloth.reality.fps=0", "cloth.reality.fps = 0.0 is not valid")])
+def test_cloth_reality_settings_are_named_by_their_config_keys(tmp_path, override, expected):
+    """Checked before anything is simulated, in the names a user sets (was 'FilmSettings.exposure',
+    and 'fps, dt, size must be > 0' after the simulation had been set up)."""
+    r = subprocess.run([sys.executable, "-m", "vidsim.cli.cloth_reality", f"paths.results={tmp_path}",
+                        f"paths.out={tmp_path}/o", override], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr, r.stderr

@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import ClothStageError
 from vidsim.cloth import ClothParams
-from vidsim.clothfit.film import FilmSettings, film_cloth, rotate_about_center, twin_swatch
+from vidsim.clothfit.film import ClothFilmError, FilmSettings, film_cloth, rotate_about_center, twin_swatch
 from vidsim.clothfit.rig import SkirtBody
 from vidsim.config import camera_from_config, projector_from_config, to_plain
 from vidsim.io.atomic import replace_dir
@@ -49,8 +49,24 @@ from vidsim.video.camera import PinholeCamera
 SIZE_M = 0.3
 
 
+def _film_settings(rc) -> FilmSettings:
+    """``cloth.reality``'s settings checked by their config names (before anything is simulated)."""
+    for key, ok, expected in (("fps", rc.fps > 0, "> 0 frames per second"), ("n_frames", rc.n_frames >= 1, ">= 1"),
+                              ("resolution", rc.resolution >= 3, ">= 3 vertices per side"),
+                              ("settle_s", rc.settle_s >= 0, ">= 0 s")):
+        if not ok:
+            raise ClothStageError(f"cloth.reality.{key} = {rc[key]!r} is not valid: expected {expected}")
+    try:
+        return FilmSettings(n_background=int(rc.n_background), albedo=float(rc.albedo), noise_sigma=float(rc.noise_sigma),
+                            blur_sigma_px=float(rc.blur_sigma_px), jpeg_quality=int(rc.jpeg_quality),
+                            motion_blur=int(rc.motion_blur), exposure=float(rc.exposure))
+    except ClothFilmError as e:
+        raise ClothStageError(str(e).replace("FilmSettings.", "cloth.reality.")) from None
+
+
 def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
+    fs = _film_settings(cfg.cloth.reality)
     if not cfg.paths.calibration:
         raise ClothStageError("paths.calibration is empty: give the cloth scene's calibration.yaml")
     est = read_calibration(cfg.paths.calibration)
@@ -80,9 +96,6 @@ def run(cfg: DictConfig) -> None:
     else:
         raise ClothStageError(f"cloth.reality.kind = {rc.kind!r} is not valid: expected 'mujoco' or 'twin'")
     V, F, times, cp, density, fps, body, truth = sim
-    fs = FilmSettings(n_background=int(rc.n_background), albedo=float(rc.albedo), noise_sigma=float(rc.noise_sigma),
-                      blur_sigma_px=float(rc.blur_sigma_px), jpeg_quality=int(rc.jpeg_quality),
-                      motion_blur=int(rc.motion_blur), exposure=float(rc.exposure))
     frames = film_cloth(V, F, lens, projector, rng, fs)
     nb = int(rc.n_background)
     all_times = np.concatenate([times[0] - (nb - np.arange(nb)) / fps, times])

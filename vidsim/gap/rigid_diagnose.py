@@ -115,15 +115,15 @@ class DiagnoseConfig:
             raise GapError(f"gap.diagnose.pair_min_gain must be in [0, 1], got {self.pair_min_gain}")
         for c in self.candidates:
             if c not in RIGID_EFFECTS:
-                raise GapError(f"gap.candidates: unknown effect {c!r}; the library has {sorted(RIGID_EFFECTS)}")
+                raise GapError(f"gap.diagnose.candidates: unknown effect {c!r}; the library has {sorted(RIGID_EFFECTS)}")
         if not 0.05 <= self.holdout <= 0.6:
-            raise GapError(f"gap.holdout must be in [0.05, 0.6], got {self.holdout}")
+            raise GapError(f"gap.diagnose.holdout must be in [0.05, 0.6], got {self.holdout}")
         if self.split not in ("interleaved", "end"):
-            raise GapError(f"gap.split must be 'interleaved' or 'end', got {self.split!r}")
+            raise GapError(f"gap.diagnose.split must be 'interleaved' or 'end', got {self.split!r}")
         if not 0.1 <= self.scale <= 1.0:
-            raise GapError(f"gap.scale must be in [0.1, 1], got {self.scale}")
+            raise GapError(f"gap.diagnose.scale must be in [0.1, 1], got {self.scale}")
         if self.top_k < 1 or self.max_nfev < 1:
-            raise GapError(f"gap.top_k and gap.max_nfev must be >= 1, got {self.top_k}, {self.max_nfev}")
+            raise GapError(f"gap.diagnose.top_k and gap.diagnose.max_nfev must be >= 1, got {self.top_k}, {self.max_nfev}")
 
 
 # ----------------------------------------------------------------------------- residuals
