@@ -38,6 +38,17 @@ def test_diagnose_missing_footage_and_fit(tmp_path):
     line = _one_line(_run("vidsim.cli.diagnose", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
                           f"gap.paths.masks={tmp_path}/m.npz", f"gap.paths.fit={tmp_path}/fit.yaml", cwd=tmp_path))
     assert "fit.yaml" in line and "velocity" in line
+    full = ("position: [0, 0, 3]\nquaternion: [1, 0, 0, 0]\nvelocity: fast\nomega_world: [0, 0, 1]\n"
+            "tilt: 0\nroll: 0\nt0: 0.1\n")
+    (tmp_path / "fit.yaml").write_text(full)
+    line = _one_line(_run("vidsim.cli.diagnose", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.masks={tmp_path}/m.npz", f"gap.paths.fit={tmp_path}/fit.yaml", cwd=tmp_path))
+    assert "field 'velocity' = 'fast' is not numeric" in line
+    (tmp_path / "fit.yaml").write_text(full.replace("fast", "[1, 0, 2]"))
+    np.savez(tmp_path / "m.npz", masks=np.ones((10, 24, 32), bool), times=np.arange(10) / 30.0)
+    line = _one_line(_run("vidsim.cli.diagnose", f"paths.out={tmp_path}/d", f"paths.footage={fo}",
+                          f"gap.paths.masks={tmp_path}/m.npz", f"gap.paths.fit={tmp_path}/fit.yaml", cwd=tmp_path))
+    assert "m.npz: masks are 32x24 but the camera is 64x48" in line
     assert not (tmp_path / "d").exists()
 
 

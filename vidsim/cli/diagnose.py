@@ -69,6 +69,11 @@ def run(cfg: DictConfig) -> None:
     if missing:
         raise DiagnoseError(f"{cfg.gap.paths.fit}: missing field(s) {missing} (expected the fit_rigid stage's fit.yaml)")
     _check_fit_fields(fit, str(cfg.gap.paths.fit), times)
+    if masks.shape[1:] != (cam.height, cam.width):
+        raise DiagnoseError(f"{cfg.gap.paths.masks}: masks are {masks.shape[2]}x{masks.shape[1]} but the camera is "
+                            f"{cam.width}x{cam.height} (masks of another footage?)")
+    if not masks.any():
+        raise DiagnoseError(f"{cfg.gap.paths.masks}: empty silhouette in every frame: nothing to diagnose")
     dcfg = diagnose_config(cfg.gap.diagnose)
     prog = Progress(4 + dcfg.top_k + int(dcfg.pairs), "diagnose steps", enabled=cfg.log.progress)
     try:
