@@ -145,6 +145,21 @@ def _same_posterior(log_prob: Callable, walkers: np.ndarray, saved: np.ndarray, 
     return True
 
 
+def _replay(chain: np.ndarray, cfg: SamplerConfig) -> list[dict]:
+    """Per-chunk progress records of a saved (steps, walkers, dim) chain, as :func:`sample` reported
+    them while sampling: ``tau_max`` from the steps before the chunk, ``acceptance`` the fraction of
+    walker moves within the chunk that changed the walker, ``seconds`` NaN (not saved)."""
+    out = []
+    c = cfg.chunk
+    for end in range(c, chain.shape[0] + 1, c):
+        tmax = float(np.max(autocorr_time(chain[:end - c]))) if end - c >= 2 * c else float("inf")
+        seg = chain[max(end - c - 1, 0):end]
+        acc = float(np.mean(np.any(np.diff(seg, axis=0) != 0, axis=2))) if len(seg) > 1 else float("nan")
+        out.append({"step": end, "max_steps": cfg.max_steps, "tau_max": tmax, "seconds": float("nan"),
+                    "acceptance": acc, "resumed": True})
+    return out
+
+
 def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.ndarray,
            cfg: SamplerConfig | None = None, path: str | os.PathLike | None = None,
            progress: Callable[[dict], None] | None = None, vectorize: bool = False) -> Chain:
@@ -220,7 +235,12 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
     t_start = time.perf_counter()
     n_done = sum(len(c) for c in chains)
     n_evals = 0
-    history = []
+    # a resumed chain's chunks are reported again (marked "resumed"), so a progress log or
+    # recording made by the resuming run covers the whole chain, not only the chunks after the kill
+    history = _replay(chains[0], cfg) if chains else []
+    if progress is not None:
+        for info in history:
+            progress(info)
     state = emcee.State(p0)
     acc_num = 0.0
     while True:

@@ -51,6 +51,16 @@ def test_resume_is_bit_identical(tmp_path) -> None:
     assert resumed.n_evals == 100 * 8  # only the missing half was sampled
     np.testing.assert_array_equal(full.chain, resumed.chain)
     np.testing.assert_array_equal(full.log_prob, resumed.log_prob)
+    # the resumed run reports the chunks sampled before the kill too (for its progress log and
+    # recording), with the convergence figures the uninterrupted run reported for them
+    assert [h["step"] for h in resumed.history] == [h["step"] for h in full.history] == [50, 100, 150, 200]
+    assert [h.get("resumed", False) for h in resumed.history] == [True, True, False, False]
+    for a, b in zip(full.history, resumed.history):
+        assert a["tau_max"] == b["tau_max"] or (np.isinf(a["tau_max"]) and np.isinf(b["tau_max"]))
+    # acceptance of a replayed chunk: walkers that moved, counted from the chain itself (emcee's
+    # own count for the first chunk also includes the move from the starting ball)
+    assert abs(resumed.history[1]["acceptance"] - full.history[1]["acceptance"]) < 1e-12
+    assert abs(resumed.history[0]["acceptance"] - full.history[0]["acceptance"]) < 0.05
 
 
 def test_a_chain_of_another_posterior_is_not_resumed(tmp_path) -> None:
