@@ -29,7 +29,7 @@ from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
 from vidsim.errors import ConfigError
 from vidsim.gap.rigid_model import GapError
 from vidsim.io.atomic import replace_dir, write_json, write_text
-from vidsim.log import make_logger
+from vidsim.log import make_logger, merge_recordings
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 
@@ -164,26 +164,32 @@ def run(cfg: DictConfig) -> None:
     scores: dict[str, dict] = {}
     resumed: list[str] = []
     t0 = time.perf_counter()
-    with make_logger(tmp / "suite.rrd", "vidsim.gap_suite", cfg.log.rerun) as lg:
-        for n in names:
-            key = {"case": cases[n], **common}
-            done = finished_or_reused(tmp / "cases", out / "cases", n, key)
-            if done is not None:
-                scores[n] = done
-                resumed.append(n)
-                prog.update(note=f"{n}: kept (finished earlier with the same settings)")
-                continue
-            try:
-                d, s, masks, _ = run_case(cases[n], dcfg, scene)
-            except GapError as e:
-                raise ConfigError(f"gap.cases.{n}: {e}") from e
-            scores[n] = s
-            plot_diagnosis(d, tmp / "cases" / f"{n}.png", title=f"{n}: withheld {s['label']}")
-            # the json last: its presence (with the same key) marks the case as finished
-            write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s,
-                                                     "diagnosis": d.to_dict()})
+    for n in names:
+        key = {"case": cases[n], **common}
+        done = finished_or_reused(tmp / "cases", out / "cases", n, key, companions=(".png", ".rrd"))
+        if done is not None:
+            scores[n] = done
+            resumed.append(n)
+            prog.update(note=f"{n}: kept (finished earlier with the same settings)")
+            continue
+        try:
+            d, s, masks, _ = run_case(cases[n], dcfg, scene)
+        except GapError as e:
+            raise ConfigError(f"gap.cases.{n}: {e}") from e
+        scores[n] = s
+        plot_diagnosis(d, tmp / "cases" / f"{n}.png", title=f"{n}: withheld {s['label']}")
+        # each case its own part of the suite's recording, kept with the case so a resumed run's
+        # suite.rrd still holds every case
+        with make_logger(tmp / "cases" / f"{n}.rrd", "vidsim.gap_suite", cfg.log.rerun, recording_id="suite") as lg:
             log_diagnosis(lg, d, masks, prefix=f"{n}/")
-            prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+        # the json last: its presence (with the same key) marks the case as finished
+        write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s,
+                                                 "diagnosis": d.to_dict()})
+        prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+    if cfg.log.rerun:
+        merge_recordings([tmp / "cases" / f"{n}.rrd" for n in names], tmp / "suite.rrd")
+    else:
+        make_logger(tmp / "suite.rrd", "vidsim.gap_suite", False).close()
     write_confusion(*confusion(scores), tmp)
     write_shrinkage(scores, tmp)
     summ = {"headline": headline(scores), "cases": scores, "seconds": time.perf_counter() - t0,

@@ -162,8 +162,8 @@ class _PlaceholderRerunLogger(RerunLogger):
     """Recording switched off (``log.rerun=false``): the declared ``.rrd`` still appears, holding
     one text entry that says so, so the DAG's outputs are the same either way."""
 
-    def __init__(self, path: str | os.PathLike, app_id: str) -> None:
-        super().__init__(path, app_id)
+    def __init__(self, path: str | os.PathLike, app_id: str, recording_id: str | None = None) -> None:
+        super().__init__(path, app_id, recording_id)
         RerunLogger.text(self, "log", "recording disabled (log.rerun=false)")
 
     def __getattribute__(self, name: str):
@@ -174,11 +174,37 @@ class _PlaceholderRerunLogger(RerunLogger):
         return object.__getattribute__(self, name)
 
 
-def make_logger(path: str | os.PathLike | None, app_id: str, enabled: bool = True) -> RerunLogger | NullLogger:
+def make_logger(path: str | os.PathLike | None, app_id: str, enabled: bool = True,
+                recording_id: str | None = None) -> RerunLogger | NullLogger:
     """A :class:`RerunLogger` writing ``path``; with ``enabled=False`` a placeholder recording
-    (so declared outputs exist); a :class:`NullLogger` when ``path`` is None."""
+    (so declared outputs exist); a :class:`NullLogger` when ``path`` is None. Files written with
+    one ``app_id`` and ``recording_id`` are parts of one recording (:func:`merge_recordings`)."""
     if path is None:
         return NullLogger()
     if not enabled:
-        return _PlaceholderRerunLogger(path, app_id)
-    return RerunLogger(path, app_id)
+        return _PlaceholderRerunLogger(path, app_id, recording_id)
+    return RerunLogger(path, app_id, recording_id)
+
+
+def merge_recordings(parts: list[str | os.PathLike], dest: str | os.PathLike) -> None:
+    """Merge ``.rrd`` files into ``dest`` (atomically) with the ``rerun rrd merge`` tool that ships
+    with rerun-sdk. Parts logged with one application and recording id (``make_logger``'s
+    ``recording_id``) become one recording, so a stage that resumes (keeping the parts of its
+    finished pieces) still writes the whole recording."""
+    import subprocess
+    import sys
+
+    dest = Path(dest)
+    if not parts:
+        raise ValueError(f"{dest}: no recordings to merge")
+    for q in parts:
+        if not Path(q).is_file():
+            raise FileNotFoundError(f"{q}: recording to merge into {dest} is missing")
+    tmp = dest.with_name(f".{dest.name}.part")
+    cmd = [sys.executable, "-m", "rerun", "rrd", "merge", *map(str, parts), "-o", str(tmp)]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0 or not tmp.is_file():
+        tmp.unlink(missing_ok=True)
+        tail = (r.stderr or r.stdout).strip().splitlines()[-3:]
+        raise RuntimeError(f"{dest}: merging {len(parts)} recordings failed ({' | '.join(tail)})")
+    os.replace(tmp, dest)

@@ -62,7 +62,7 @@ def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls
         stage.run(_cfg(out))
     assert made == [201, 202] and not out.exists()
     assert sorted(p.name for p in (tmp_path / ".suite.part" / "cases").iterdir()) == [
-        "null_a.json", "null_a.png", "null_b.json", "null_b.png"]
+        "null_a.json", "null_a.png", "null_a.rrd", "null_b.json", "null_b.png", "null_b.rrd"]
 
     crash_at["seed"] = None
     stage.run(_cfg(out))
@@ -84,8 +84,30 @@ def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls
     assert made == [201, 202, 203, 201, 202]
     summ = json.loads((out / "suite.json").read_text())
     assert summ["resumed_cases"] == ["null_a", "lens_k1"] and sorted(summ["cases"]) == ["lens_k1", "null_a"]
-    assert sorted(p.name for p in (out / "cases").iterdir()) == ["lens_k1.json", "lens_k1.png",
-                                                                 "null_a.json", "null_a.png"]
+    assert sorted(p.name for p in (out / "cases").iterdir()) == ["lens_k1.json", "lens_k1.png", "lens_k1.rrd",
+                                                                 "null_a.json", "null_a.png", "null_a.rrd"]
+
+
+def test_resumed_suite_recording_holds_every_case(tmp_path, calls, monkeypatch):
+    """suite.rrd after a resume: the cases finished before the kill are in it, not only those after."""
+    import subprocess
+    import sys
+
+    made, crash_at = calls
+    monkeypatch.setattr(stage, "log_diagnosis",
+                        lambda lg, d, masks, prefix="": lg.scalar(f"{prefix}metric/gap_base_px", 1.0))
+    out = tmp_path / "suite"
+    crash_at["seed"] = 203
+    with pytest.raises(RuntimeError):
+        stage.run(_cfg(out, "log.rerun=true"))
+    crash_at["seed"] = None
+    stage.run(_cfg(out, "log.rerun=true"))
+    assert made == [201, 202, 203]
+    r = subprocess.run([sys.executable, "-m", "rerun", "rrd", "print", str(out / "suite.rrd")],
+                       capture_output=True, text=True, check=True)
+    for case in ("null_a", "null_b", "lens_k1"):
+        assert f"/{case}/metric/gap_base_px" in r.stdout
+    assert r.stdout.count("StoreInfo") == 1  # one recording, not three
 
 
 def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
