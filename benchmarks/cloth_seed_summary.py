@@ -1,8 +1,11 @@
 """One line per results folder of the cloth study: the validation and skirt matrices' counts (own
 fabric's parameters best in a column, and which columns are lost) and each twin's held-out ratio
-and bend/shear errors, read from the stages' outputs (nothing is recomputed).
+and bend/shear errors, read from the stages' outputs (nothing is recomputed); also the joint fits'
+twin scores where ``cloth/twin_joint/<twin>/score.yaml`` exists (``cloth_twin_score`` run by hand
+on ``cloth/fit_joint/<twin>/fit.yaml``).
 
-Used to compare annealing seeds (docs/cloth_study.md, "Annealing seeds 1-4 with the fix")::
+Used to compare annealing seeds (docs/cloth_study.md, "Annealing seeds 1-4 with the fix" and
+"Joint fits against selection on the twins")::
 
     python benchmarks/cloth_seed_summary.py results results_s1 results_s2
 """
@@ -49,6 +52,8 @@ def main() -> None:
             parts.append(f"{name} {matrix_line(f)}" if f.is_file() else f"{name} -")
         for f in sorted((Path(r) / "cloth" / "twin").glob("*/score.yaml")):
             parts.append(f"{f.parent.name}: {twin_line(f)}")
+        for f in sorted((Path(r) / "cloth" / "twin_joint").glob("*/score.yaml")):
+            parts.append(f"{f.parent.name} joint: {twin_line(f)}")
         print(" | ".join(parts))
 
 
