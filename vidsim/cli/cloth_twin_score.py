@@ -4,6 +4,10 @@
 cloth.twin.params=results/cloth/select/twin/params.yaml cloth.twin.profile=results/cloth/profile/twin/profile.yaml
 cloth.twin.footage=results/footage/cloth_twin_robot``
 
+``cloth.twin.params`` may be any file with a ``params`` mapping (a selection's ``params.yaml``, a
+fit's ``fit.yaml``: the joint fit is scored this way); ``cloth.twin.profile`` is optional (empty:
+no determination column).
+
 The twin films the estimator's own simulator (finer mesh, known parameters), so the true answer
 exists. A scoring stage: it reads the truth file beside the held-out footage (estimators never do).
 It reports, for all nine parameters, the estimate, the truth, the relative error and whether the
@@ -30,14 +34,15 @@ from vidsim.report.figures import save_figure
 def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
     tc = cfg.cloth.twin
-    for key in ("params", "profile", "footage"):
+    for key in ("params", "footage"):
         if not tc[key]:
             raise ClothStageError(f"cloth.twin.{key} is empty")
     truth = read_truth(tc.footage)
     if truth.get("kind") != "twin" or "params" not in truth:
         raise ClothStageError(f"{tc.footage}: its truth is not a twin reality's (kind = {truth.get('kind')!r})")
     sel = read_selected([str(tc.params)])[0]
-    prof = load_yaml(tc.profile, ClothStageError, "profile.yaml", mapping=True).get("profiles", {})
+    # the profile of these parameters (profile_cloth), if any: which of them the footage determines
+    prof = load_yaml(tc.profile, ClothStageError, "profile.yaml", mapping=True).get("profiles", {}) if tc.profile else {}
     est = params_from_dict(sel["params"], str(tc.params))
     true = params_from_dict(truth["params"], f"truth of {tc.footage}")
     obj = make_objective([load_trial(tc.footage, cfg)], cfg)
@@ -83,7 +88,7 @@ def _figure(rows: dict, ratio: float, path: Path) -> None:
 
     names = list(rows)
     rel = np.array([rows[n]["relative_error"] for n in names])
-    col = ["C0" if rows[n]["determined"] else ("0.6" if rows[n]["determined"] is False else "C1") for n in names]
+    col = ["C1" if not rows[n]["estimated"] else ("0.6" if rows[n]["determined"] is False else "C0") for n in names]
     fig, ax = plt.subplots(figsize=(7, 3))
     ax.bar(range(len(names)), rel, color=col)
     ax.axhline(0.25, color="C3", lw=0.8, ls="--")

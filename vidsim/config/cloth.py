@@ -276,8 +276,8 @@ class ClothProfileConfig:
 @dataclass
 class ClothTwinConfig:
     """Scoring of the twin reality (``score_cloth_twin``, reads the truth beside ``footage``): the
-    twin's selected ``params.yaml``, its ``profile.yaml`` and its held-out footage folder (Snakemake
-    fills them).
+    twin's selected ``params.yaml`` (or a joint fit's ``fit.yaml``), its ``profile.yaml`` (optional:
+    empty for none) and its held-out footage folder (Snakemake fills them).
     Targets (issue 5): held-out error within ``heldout_ratio`` of the true parameters' error,
     ``rel_tol`` relative error on the parameters named in ``rel_tol_params``."""
 

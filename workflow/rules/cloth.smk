@@ -38,6 +38,8 @@ if stage_enabled("cloth"):
     if CLOTH_PROFILE:
         TARGETS["cloth"] += [f"{RESULTS}/cloth/profile/{f}/profile.yaml" for f in CLOTH_FABRICS + CLOTH_TWINS]
     TARGETS["cloth"] += [f"{RESULTS}/cloth/twin/{t}/score.yaml" for t in CLOTH_TWINS]
+    # twins in the method comparison: their joint fit scored against the truth too
+    TARGETS["cloth"] += [f"{RESULTS}/cloth/twin_joint/{t}/score.yaml" for t in CLOTH_TWINS if t in CLOTH_COMPARE]
     if CLOTH_SKIRT:
         TARGETS["cloth"] += [f"{RESULTS}/cloth/skirt/{x}" for x in ("matrix.png", "skirt.yaml", "side_by_side.png")]
     if CLOTH_COMPARE:
@@ -284,6 +286,45 @@ rule score_cloth_twin:
     shell:
         "python -m vidsim.cli.cloth_twin_score paths.out={params.out} cloth.twin.params={input.params} "
         "cloth.twin.profile={input.profile} cloth.twin.footage=$(dirname {input.meta}) "
+        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+
+rule score_cloth_twin_joint:
+    """Twin reality: the joint fit (one annealing over both trials) against the known truth, like score_cloth_twin."""
+    input:
+        params=f"{RESULTS}/cloth/fit_joint/{{fabric}}/fit.yaml",
+        meta=f"{RESULTS}/footage/cloth_{{fabric}}_{CLOTH_HELD_OUT}/meta.yaml",
+        truth=f"{RESULTS}/footage/cloth_{{fabric}}_{CLOTH_HELD_OUT}.truth.yaml",
+    output:
+        score=f"{RESULTS}/cloth/twin_joint/{{fabric}}/score.yaml",
+        csv=report(
+            f"{RESULTS}/cloth/twin_joint/{{fabric}}/errors.csv",
+            caption="../report/cloth_twin.rst",
+            category="Cloth",
+            subcategory="twin",
+        ),
+        png=report(
+            f"{RESULTS}/cloth/twin_joint/{{fabric}}/errors.png",
+            caption="../report/cloth_twin.rst",
+            category="Cloth",
+            subcategory="twin",
+        ),
+    params:
+        out=get_out_dir,
+        extra=stage_overrides("score_cloth_twin"),
+        cloth=CLOTH_HYDRA,
+        fabric=cloth_fabric_overrides,
+    benchmark:
+        f"{RESULTS}/benchmarks/score_cloth_twin_joint_{{fabric}}.tsv"
+    log:
+        f"{RESULTS}/logs/score_cloth_twin_joint_{{fabric}}.log",
+    conda:
+        CONDA_ENV
+    resources:
+        mem_mb=1000,
+        runtime=10,
+    shell:
+        "python -m vidsim.cli.cloth_twin_score paths.out={params.out} cloth.twin.params={input.params} "
+        "cloth.twin.profile= cloth.twin.footage=$(dirname {input.meta}) "
         "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
 
 
