@@ -140,6 +140,17 @@ def test_twin_select_profile_score_and_method_comparison(study):
     assert cdoc["trial_simulations"] == {"anneal": [14], "cmaes": [14], "joint": [14]}
     assert cdoc["best_on_heldout"]["twin"] in ("anneal", "joint", "cmaes")
     assert (cmp_ / "curves.png").stat().st_size > 0 and (cmp_ / "heldout.png").stat().st_size > 0
+    # the joint fit scored against the truth (score_cloth_twin_joint: a fit.yaml, no profile): its
+    # held-out error is the one the comparison reports for the joint method
+    jscore = res / "cloth" / "twin_joint" / "twin"
+    _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={jscore}", f"cloth.twin.params={joint / 'fit.yaml'}",
+         "cloth.twin.profile=", f"cloth.twin.footage={fp['robot']}")
+    jdoc = yaml.safe_load((jscore / "score.yaml").read_text())
+    crow = {r.split(",")[0]: r.split(",") for r in (cmp_ / "compare.csv").read_text().splitlines()[1:]}
+    assert jdoc["heldout"]["error_selected"] == pytest.approx(float(crow["twin"][2]), rel=1e-4)
+    assert jdoc["heldout"]["error_true_params"] == sdoc["heldout"]["error_true_params"]
+    assert all(r["determined"] is None for r in jdoc["parameters"].values()) and jdoc["not_determined"] == []
+    assert jdoc["parameters"]["stretch"]["estimate"] == jfit["params"]["stretch"]
 
 
 def test_skirt_matrix_prefers_the_matching_fabric(study):
