@@ -37,7 +37,8 @@ def twin_line(path: Path) -> str:
     p = d["parameters"]
 
     def err(n: str) -> str:
-        return f"{p[n]['relative_error']:.2f}" + ("" if p[n].get("determined", True) else " (not determined)")
+        # determined: True/False from the profile, None when scored without one (a joint fit)
+        return f"{p[n]['relative_error']:.2f}" + (" (not determined)" if p[n].get("determined") is False else "")
 
     return f"ratio {d['heldout']['ratio']:.2f}, bend {err('bend')}, shear {err('shear')}"
 
