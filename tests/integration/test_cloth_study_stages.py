@@ -13,6 +13,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -120,8 +121,15 @@ def test_twin_select_profile_score_and_method_comparison(study):
     assert all(prof_e[k] <= slice_e[k] * (1 + 1e-12) for k in slice_e)
     score = res / "cloth" / "twin" / "twin"
     _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={score}", f"cloth.twin.params={params}",
-         f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}")
+         f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=5")
     sdoc = yaml.safe_load((score / "score.yaml").read_text())
+    # the held-out ratio's own scale: the true parameters moved by a few per cent, scored the same way
+    ts = sdoc["heldout"]["truth_scale"]
+    assert ts["draws"] == len(ts["ratios"]) == 5 and ts["parameters"] == ["stretch", "drag_quad"]
+    assert 0 < ts["ratio_q10"] <= ts["ratio_q50"] <= ts["ratio_q90"] <= max(ts["ratios"])
+    assert ts["fraction_within_heldout_ratio"] == pytest.approx(np.mean(np.array(ts["ratios"]) <= 1.10))
+    chk = sdoc["checks"]["heldout_ratio_within_truth_scale"]
+    assert chk["target"] == ts["ratio_q90"] and chk["met"] == (sdoc["heldout"]["ratio"] <= ts["ratio_q90"])
     truth = yaml.safe_load((res / "footage" / "cloth_twin_robot.truth.yaml").read_text())["params"]
     st = sdoc["parameters"]["stretch"]
     assert st["truth"] == truth["stretch"] and st["estimated"] and not sdoc["parameters"]["bend"]["estimated"]
@@ -144,8 +152,9 @@ def test_twin_select_profile_score_and_method_comparison(study):
     # held-out error is the one the comparison reports for the joint method
     jscore = res / "cloth" / "twin_joint" / "twin"
     _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={jscore}", f"cloth.twin.params={joint / 'fit.yaml'}",
-         "cloth.twin.profile=", f"cloth.twin.footage={fp['robot']}")
+         "cloth.twin.profile=", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=0")
     jdoc = yaml.safe_load((jscore / "score.yaml").read_text())
+    assert jdoc["heldout"]["truth_scale"] is None and "heldout_ratio_within_truth_scale" not in jdoc["checks"]
     crow = {r.split(",")[0]: r.split(",") for r in (cmp_ / "compare.csv").read_text().splitlines()[1:]}
     assert jdoc["heldout"]["error_selected"] == pytest.approx(float(crow["twin"][2]), rel=1e-4)
     assert jdoc["heldout"]["error_true_params"] == sdoc["heldout"]["error_true_params"]

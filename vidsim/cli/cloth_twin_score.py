@@ -13,11 +13,16 @@ exists. A scoring stage: it reads the truth file beside the held-out footage (es
 It reports, for all nine parameters, the estimate, the truth, the relative error and whether the
 footage determines the parameter (``profile_cloth``); and on the held-out motion the error of the
 selected parameters against the error of the true parameters (both simulated by the estimator's
-model). Writes ``score.yaml``, ``errors.csv`` and ``errors.png``.
+model). On a chaotic motion that ratio moves by tens of per cent when the true parameters move by a
+few per cent (docs/cloth_study.md), so the stage also scores ``cloth.twin.perturb_draws`` sets of
+the true parameters scaled by exp(N(0, ``perturb_sigma``)) and reports their ratios' quantiles
+(``heldout.truth_scale``) and whether the estimate's ratio is within their 90 % point, beside the
+issue's fixed 1.10. Writes ``score.yaml``, ``errors.csv`` and ``errors.png``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +42,9 @@ def run(cfg: DictConfig) -> None:
     for key in ("params", "footage"):
         if not tc[key]:
             raise ClothStageError(f"cloth.twin.{key} is empty")
+    if not (tc.perturb_sigma >= 0 and np.isfinite(tc.perturb_sigma)) or tc.perturb_draws < 0:
+        raise ClothStageError(f"cloth.twin.perturb_sigma = {tc.perturb_sigma} (>= 0 expected) / cloth.twin.perturb_draws "
+                              f"= {tc.perturb_draws} (>= 0 expected, 0: off)")
     truth = read_truth(tc.footage)
     if truth.get("kind") != "twin" or "params" not in truth:
         raise ClothStageError(f"{tc.footage}: its truth is not a twin reality's (kind = {truth.get('kind')!r})")
@@ -60,17 +68,46 @@ def run(cfg: DictConfig) -> None:
                    "truth_in_interval": None if p is None else bool(p["interval"][0] <= t <= p["interval"][1])}
     ratio = e_est / e_true if e_true > 0 else float("inf")
     checks = {"heldout_ratio": {"value": ratio, "target": float(tc.heldout_ratio), "met": bool(ratio <= tc.heldout_ratio)}}
+    scale = truth_scale(obj, true, e_true, obj.space.names, float(tc.perturb_sigma), int(tc.perturb_draws),
+                        int(tc.perturb_seed), float(tc.heldout_ratio))
+    if scale is not None:
+        # beside the issue's check, not instead of it: is the estimate's held-out error inside the
+        # spread that a few per cent of parameter change already gives on this chaotic motion?
+        checks["heldout_ratio_within_truth_scale"] = {"value": ratio, "target": scale["ratio_q90"],
+                                                      "met": bool(ratio <= scale["ratio_q90"])}
     for n in tc.rel_tol_params:
         checks[f"{n}_relative_error"] = {"value": rows[n]["relative_error"], "target": float(tc.rel_tol),
                                          "met": bool(rows[n]["relative_error"] <= tc.rel_tol)}
-    doc = {"heldout": {"footage": str(tc.footage), "error_selected": e_est, "error_true_params": e_true, "ratio": ratio},
+    doc = {"heldout": {"footage": str(tc.footage), "error_selected": e_est, "error_true_params": e_true, "ratio": ratio,
+                       "truth_scale": scale},
            "parameters": rows, "checks": checks, "not_determined": [n for n, r in rows.items() if r["determined"] is False]}
     write_text(out / "errors.csv", "parameter,estimate,truth,relative_error,estimated,determined,interval_lo,"
                "interval_hi\n" + "".join(_csv_row(n, r) for n, r in rows.items()))
-    _figure(rows, ratio, out / "errors.png")
+    _figure(rows, ratio, out / "errors.png", None if scale is None else scale["ratio_q90"])
     write_yaml(out / "score.yaml", doc)
+    if scale is not None:
+        print(f"score_cloth_twin: the true parameters moved by exp(N(0, {scale['sigma']:g})) give held-out ratios "
+              f"{scale['ratio_q10']:.3f} / {scale['ratio_q50']:.3f} / {scale['ratio_q90']:.3f} (10/50/90 %), "
+              f"{scale['fraction_within_heldout_ratio']:.0%} within {tc.heldout_ratio:g}", flush=True)
     print(f"score_cloth_twin: held-out error ratio {ratio:.3f}; relative errors " +
           ", ".join(f"{n} {r['relative_error']:.0%}" for n, r in rows.items()), flush=True)
+
+
+def truth_scale(obj, true, e_true: float, names: list[str], sigma: float, draws: int, seed: int,
+                limit: float) -> dict | None:
+    """Held-out ratios of the true parameters with each of ``names`` scaled by exp(N(0, sigma)):
+    their 10/50/90 % quantiles and the fraction within ``limit`` (None for 0 draws or no truth error).
+    A simulation that fails scores as the objective's failure score (a large ratio), never NaN."""
+    if draws <= 0 or not e_true > 0:
+        return None
+    rng = np.random.default_rng(seed)
+    r = np.array([obj.evaluate_params(dataclasses.replace(true, **{n: getattr(true, n) * float(np.exp(rng.normal(0, sigma)))
+                                                                  for n in names})).score / e_true
+                  for _ in range(draws)])
+    q = np.quantile(r, [0.1, 0.5, 0.9])
+    return {"sigma": sigma, "draws": draws, "seed": seed, "parameters": list(names),
+            "ratio_q10": float(q[0]), "ratio_q50": float(q[1]), "ratio_q90": float(q[2]),
+            "fraction_within_heldout_ratio": float(np.mean(r <= limit)), "ratios": [float(x) for x in r]}
 
 
 def _csv_row(name: str, r: dict) -> str:
@@ -80,7 +117,7 @@ def _csv_row(name: str, r: dict) -> str:
             f"{lo},{hi}\n")
 
 
-def _figure(rows: dict, ratio: float, path: Path) -> None:
+def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -95,8 +132,9 @@ def _figure(rows: dict, ratio: float, path: Path) -> None:
     ax.set_yscale("symlog", linthresh=0.1)
     ax.set_xticks(range(len(names)), names, rotation=40, ha="right", fontsize=7)
     ax.set_ylabel("|estimate - truth| / truth")
-    ax.set_title(f"twin: relative errors (grey: not determined by the footage; orange: not estimated); "
-                 f"held-out error / true-parameter error = {ratio:.3f}", fontsize=7)
+    scale = "" if q90 is None else f" (true parameters moved a few %: up to {q90:.3f}, 90 %)"
+    ax.set_title(f"twin: relative errors (grey: not determined by the footage; orange: not estimated)\n"
+                 f"held-out error / true-parameter error = {ratio:.3f}{scale}", fontsize=7)
     save_figure(fig, path)
 
 
