@@ -292,7 +292,7 @@ class ClothTwinConfig:
     rel_tol: float = 0.25
     rel_tol_params: list[str] = field(default_factory=lambda: ["bend", "shear"])
     perturb_sigma: float = 0.05
-    perturb_draws: int = 20
+    perturb_draws: int = 50
     perturb_seed: int = 0
 
 
