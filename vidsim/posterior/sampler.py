@@ -146,14 +146,19 @@ def _same_posterior(log_prob: Callable, walkers: np.ndarray, saved: np.ndarray, 
 
 
 def _replay(chain: np.ndarray, cfg: SamplerConfig) -> list[dict]:
-    """Per-chunk progress records of a saved (steps, walkers, dim) chain, as :func:`sample` reported
-    them while sampling: ``tau_max`` from the steps before the chunk, ``acceptance`` the fraction of
-    walker moves within the chunk that changed the walker, ``seconds`` NaN (not saved)."""
+    """Per-chunk progress records of a saved (steps, walkers, dim) chain, like those :func:`sample`
+    reports while sampling: ``tau_max`` from the steps before the chunk (as live), ``acceptance`` the
+    fraction of walker moves within the chunk that changed the walker (for the first chunk one move
+    fewer than live: the starting ball is not saved), ``seconds`` NaN (not saved). A chain saved with
+    another chunk length ends with a record for its last, partial chunk."""
     out = []
     c = cfg.chunk
-    for end in range(c, chain.shape[0] + 1, c):
-        tmax = float(np.max(autocorr_time(chain[:end - c]))) if end - c >= 2 * c else float("inf")
-        seg = chain[max(end - c - 1, 0):end]
+    S = chain.shape[0]
+    ends = list(range(c, S + 1, c)) + ([S] if S % c else [])
+    for i, end in enumerate(ends):
+        start = ends[i - 1] if i else 0
+        tmax = float(np.max(autocorr_time(chain[:start]))) if start >= 2 * c else float("inf")
+        seg = chain[max(start - 1, 0):end]
         acc = float(np.mean(np.any(np.diff(seg, axis=0) != 0, axis=2))) if len(seg) > 1 else float("nan")
         out.append({"step": end, "max_steps": cfg.max_steps, "tau_max": tmax, "seconds": float("nan"),
                     "acceptance": acc, "resumed": True})

@@ -116,3 +116,15 @@ def test_autocorr_time_of_ar1_chain(rng) -> None:
     for i in range(1, n):
         x[i] = phi * x[i - 1] + e[i]
     assert abs(autocorr_time(x)[0] / 19.0 - 1) < 0.15
+
+
+def test_replay_reports_a_last_partial_chunk() -> None:
+    """A chain saved with another chunk length: every saved step is reported, the last chunk short."""
+    from vidsim.posterior.sampler import _replay
+
+    chain = np.cumsum(np.random.default_rng(0).normal(size=(130, 8, 2)), axis=0)
+    recs = _replay(chain, SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=200, seed=5))
+    assert [r["step"] for r in recs] == [50, 100, 130] and all(r["resumed"] for r in recs)
+    assert np.isinf(recs[0]["tau_max"]) and np.isinf(recs[1]["tau_max"]) and np.isfinite(recs[2]["tau_max"])
+    assert recs[2]["acceptance"] == 1.0  # every walker moves at every step of this random walk
+    assert _replay(chain[:30], SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=200))[0]["step"] == 30
