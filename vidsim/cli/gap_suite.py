@@ -158,8 +158,10 @@ def run(cfg: DictConfig) -> None:
     for f in (tmp / "cases").iterdir():  # cases no longer asked for do not reach the output
         if f.stem not in names:
             f.unlink()
+    # log.rerun is part of a case's key: a case finished with recording off holds a placeholder
+    # recording, which must not stand in for the case once recording is on
     common = {"diagnose": OmegaConf.to_container(cfg.gap.diagnose, resolve=True),
-              "scene": OmegaConf.to_container(sc, resolve=True)}
+              "scene": OmegaConf.to_container(sc, resolve=True), "rerun": bool(cfg.log.rerun)}
     prog = Progress(len(names), "gap_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
     resumed: list[str] = []

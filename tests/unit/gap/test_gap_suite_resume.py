@@ -110,6 +110,18 @@ def test_resumed_suite_recording_holds_every_case(tmp_path, calls, monkeypatch):
     assert r.stdout.count("StoreInfo") == 1  # one recording, not three
 
 
+def test_cases_run_without_recording_are_rerun_once_recording_is_on(tmp_path, calls):
+    """A case finished with log.rerun=false holds a placeholder recording: not reused when it is on."""
+    made, _ = calls
+    out = tmp_path / "suite"
+    stage.run(_cfg(out))  # log.rerun=false
+    assert made == [201, 202, 203]
+    stage.run(_cfg(out, "log.rerun=true"))
+    assert made == [201, 202, 203] * 2
+    stage.run(_cfg(out, "log.rerun=true"))  # now with recordings: kept
+    assert made == [201, 202, 203] * 2
+
+
 def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
     """gap_cloth_suite keeps finished cases (no figure per case there) and writes shrinkage.csv."""
     import vidsim.cli.gap_cloth_suite as cstage
