@@ -1,8 +1,8 @@
 """One line per results folder of the cloth study: the validation and skirt matrices' counts (own
 fabric's parameters best in a column, and which columns are lost) and each twin's held-out ratio
 and bend/shear errors, read from the stages' outputs (nothing is recomputed); also the joint fits'
-twin scores where ``cloth/twin_joint/<twin>/score.yaml`` exists (``cloth_twin_score`` run by hand
-on ``cloth/fit_joint/<twin>/fit.yaml``).
+twin scores where ``cloth/twin_joint/<twin>/score.yaml`` exists (stage ``score_cloth_twin_joint``
+for twins listed in ``cloth.compare``, or ``cloth_twin_score`` run by hand on a ``fit_joint`` folder).
 
 Used to compare annealing seeds (docs/cloth_study.md, "Annealing seeds 1-4 with the fix" and
 "Joint fits against selection on the twins")::
