@@ -63,6 +63,7 @@ def test_throw_through_the_stages_is_recovered(throw):
     _ok(_cli("fit_rigid", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE, *FIT))
     for f in ("fit.yaml", "overlay.mp4", "errors.png", "rigid.rrd"):
         assert (out / f).is_file(), f
+    assert not (out / ".fit_rigid.stages.jsonl").exists()  # the checkpoint goes once fit.yaml is written
     _ok(_cli("score_rigid", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE))
     s = yaml.safe_load((out / "score.yaml").read_text())
     e = s["errors"]

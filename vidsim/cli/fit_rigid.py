@@ -10,6 +10,10 @@ folder (meta.yaml: ``object``, ``gravity_magnitude``, ``initial_guess``; calibra
 * ``overlay.mp4`` (or ``.gif``): model silhouette (green) over the footage with the observed one (magenta);
 * ``errors.png``: IoU and mismatch per frame, objective per iteration, the 3D path;
 * ``rigid.rrd``: footage, observed and simulated silhouettes, per-frame errors, iterations, 3D path.
+
+Checkpoint: every finished stage of every start is logged to ``.fit_rigid.stages.jsonl`` in the
+output folder as it ends; a killed run started again replays them and continues (the same result
+as an uninterrupted run); the file is removed once ``fit.yaml`` is written.
 """
 
 from __future__ import annotations
@@ -105,6 +109,9 @@ def run(cfg: DictConfig) -> None:
     if not masks.any():
         raise RigidStageError(f"{mpath}: empty silhouette in every one of the {len(masks)} frames: nothing to fit")
     fc = fit_config(cfg.rigid.fit, g)
+    ckpt = out / ".fit_rigid.stages.jsonl"  # every finished stage of every start; removed once fit.yaml is written
+    if ckpt.is_file():
+        print(f"fit_rigid: resuming from {ckpt} (stages already run are replayed, not recomputed)", flush=True)
     prog = Progress(1, "fit_rigid (work units)", enabled=cfg.log.progress)
 
     def on_step(done: int, total: int, note: str) -> None:
@@ -112,7 +119,7 @@ def run(cfg: DictConfig) -> None:
         prog.update(done - prog.i, note=note)
 
     try:
-        res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc, on_step=on_step)
+        res = fit_throw(masks, times, cam, body, fo.meta["initial_guess"], fc, on_step=on_step, checkpoint=ckpt)
     except RigidBodyError as e:
         raise RigidStageError(f"{meta_path} / {mpath}: {e}") from e
     failed = (not np.all(np.isfinite(res.states))) or (bool(res.history) and res.history[-1] >= FAIL_COST)
@@ -147,9 +154,11 @@ def run(cfg: DictConfig) -> None:
         lg.series("optim/objective", np.asarray(res.history))
     # the main output last: a kill while the figures are written leaves no new fit.yaml beside old figures
     write_yaml(out / "fit.yaml", d)
+    ckpt.unlink(missing_ok=True)
     alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else ""
+    replay = f" ({res.replayed_stages} stages replayed from the checkpoint)" if res.replayed_stages else ""
     print(f"fit_rigid: mean IoU {res.mean_iou:.4f} over {len(res.frames)} frames, {res.n_starts} starts, "
-          f"{res.seconds:.1f} s{alt} -> {out / 'fit.yaml'}")
+          f"{res.seconds:.1f} s{replay}{alt} -> {out / 'fit.yaml'}")
 
 
 main = stage_app("fit_rigid", run)

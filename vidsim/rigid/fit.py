@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import cv2
@@ -40,6 +41,10 @@ from vidsim.rigid.dynamics import (
 )
 from vidsim.rigid.silhouette import render_coverage, sequence_costs, weight_maps
 from vidsim.video.camera import PinholeCamera
+
+FIT_VERSION = 1
+"""Version of the fit's numerics (dynamics, silhouette metric, stage schedule semantics): part of a
+checkpoint's context, so bump it when a change makes earlier stage results invalid."""
 
 FAIL_COST = 1e9
 """Objective value of a diverged simulation (a very bad score, never an exception or a NaN)."""
@@ -164,6 +169,7 @@ class FitResult:
         n_starts: number of starts screened.
         distinct: indices into ``alternatives`` of the distinct, equally good solutions.
         gravity: gravity magnitude the fit assumed, m/s^2; hmax: its RK4 step bound, seconds.
+        replayed_stages: stages taken from the checkpoint of a killed run (0: none, or no checkpoint).
     """
 
     params: np.ndarray
@@ -182,6 +188,7 @@ class FitResult:
     distinct: list[int] = field(default_factory=list)
     gravity: float = G_EARTH
     hmax: float = 1.0 / 60.0
+    replayed_stages: int = 0
 
     def summary(self) -> dict:
         """Plain dictionary (YAML friendly) of the estimate."""
@@ -409,7 +416,8 @@ def visible_frames(masks: np.ndarray, min_pixels: int = 20) -> np.ndarray:
 
 def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, guess: dict,
               cfg: FitConfig | dict | None = None,
-              on_step: Callable[[int, int, str], None] | None = None) -> FitResult:
+              on_step: Callable[[int, int, str], None] | None = None,
+              checkpoint: str | Path | None = None) -> FitResult:
     """Estimate initial state and gravity direction of a throw from its silhouettes.
 
     Args:
@@ -425,6 +433,12 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         on_step: called after every optimised stage of a start as ``on_step(done, total, note)``, in
             work units (scale^2 x frames x iterations, integers); ``total`` is an upper bound (the
             final polish may skip candidates). For progress lines.
+        checkpoint: a JSONL file where every finished stage of every start is logged (fsync-ed) as
+            it ends (:class:`vidsim.optim.cache.EvalCache`, keyed by the stage's settings and its
+            exact starting point). A killed fit run again with the same file replays those stages
+            and continues where it stopped, with the result it would have had uninterrupted; a file
+            written for other inputs (masks, times, camera, body, guess, settings, ``FIT_VERSION``)
+            is moved aside and not replayed. None: no checkpoint.
 
     Returns:
         :class:`FitResult`.
@@ -448,6 +462,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         raise RigidBodyError(f"initial guess: 't0' = {t0} is after the first visible frame at {ft[0]}")
 
     objs: dict[tuple, SilhouetteObjective] = {}
+    log = _stage_log(checkpoint, fm, ft, t0, cam, body, p_guess, q_guess, cfg)
 
     def objective(st: Stage) -> SilhouetteObjective:
         n = len(ft) if st.frames is None else min(st.frames, len(ft))
@@ -474,10 +489,63 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         done += work(st)
         if on_step is not None:
             on_step(done, total, note)
+
+    def stage(st: Stage, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, list[float]]:
+        if log is None:
+            return run_stage(objective(st), p, q, st.maxiter)
+        return _logged_stage(log, objective, st, p, q)
+
+    try:
+        res = _fit_starts(cfg, pool, stage, step, body, cam, ft, fm, frames, t0, len(starts), t_start)
+        res.replayed_stages = 0 if log is None else log.n_hits
+        return res
+    finally:
+        if log is not None:
+            log.close()
+
+
+def _stage_log(checkpoint, fm, ft, t0, cam, body, p_guess, q_guess, cfg):
+    """The checkpoint of :func:`fit_throw` (an :class:`~vidsim.optim.cache.EvalCache` whose context
+    fingerprints every input of the fit), or None."""
+    if checkpoint is None:
+        return None
+    from vidsim.optim.cache import EvalCache, fingerprint
+
+    ctx = fingerprint("fit_throw", FIT_VERSION, np.packbits(fm), fm.shape, ft, float(t0), cam, body, p_guess,
+                      q_guess, cfg)
+    return EvalCache(lambda u: None, checkpoint, context=ctx)
+
+
+def _logged_stage(log, objective, st: Stage, p: np.ndarray, q: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, float, list[float]]:
+    """:func:`run_stage` through the checkpoint: the key is the stage's settings and the exact
+    starting point, the record the stage's end point, cost and history."""
+    frames = -1.0 if st.frames is None else float(st.frames)
+    u = np.concatenate([[st.scale, frames, float(st.maxiter), st.lam, st.ramp], np.asarray(p, float),
+                        np.asarray(q, float)])
+
+    def run(_u: np.ndarray) -> tuple[float, dict]:
+        p1, q1, E, h = run_stage(objective(st), p, q, st.maxiter)
+        return E, {"p": p1.tolist(), "q": q1.tolist(), "h": [float(x) for x in h]}
+
+    from vidsim.optim.cache import point_key
+
+    log.fn = run
+    E = log(u)
+    info = log.store[point_key(u)][1]
+    if "p" not in info:  # the stage raised a floating-point error: a failed start, never a crash
+        return np.asarray(p, float), np.asarray(q, float), FAIL_COST, [FAIL_COST]
+    return np.asarray(info["p"], float), np.asarray(info["q"], float), float(E), list(info["h"])
+
+
+def _fit_starts(cfg: FitConfig, pool: list, stage, step, body: BoxBody, cam: PinholeCamera, ft: np.ndarray,
+                fm: np.ndarray, frames: np.ndarray, t0: float, n_starts: int, t_start: float) -> FitResult:
+    """Screen, refine and polish the starts of :func:`fit_throw` (``stage(st, p, q)`` runs one
+    stage), then rank the candidates."""
     for st, keep in zip(cfg.screen, cfg.screen_keep):
         nxt = []
         for E, i, p, q, hist in pool:
-            p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
+            p, q, E, h = stage(st, p, q)
             nxt.append((E, i, p, q, hist + h))
             step(st, f"screen start {i} at scale {st.scale}: {E:.1f}")
         nxt.sort(key=lambda s: s[0])
@@ -485,7 +553,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     refined = []
     for E, i, p, q, hist in pool:
         for st in cfg.refine:
-            p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
+            p, q, E, h = stage(st, p, q)
             hist = hist + h
             step(st, f"refine start {i} at scale {st.scale}: {E:.1f}")
         refined.append((E, i, p, q, hist))
@@ -494,7 +562,7 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     for E, i, p, q, hist in refined:
         if E <= cfg.final_ratio * E_best or not cands:
             for st in cfg.final:
-                p, q, E, h = run_stage(objective(st), p, q, st.maxiter)
+                p, q, E, h = stage(st, p, q)
                 hist = hist + h
                 step(st, f"polish start {i} at scale {st.scale}: {E:.1f}")
         iou = silhouette_iou(p, q, body, cam, ft, t0, fm, cfg.hmax, cfg.gravity)
@@ -505,5 +573,5 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     tr_best = simulate(best.params, best.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False, g=cfg.gravity)
     distinct = distinct_alternatives(best, alts, body, ft, t0, cfg.tie_iou, cfg.distinct_deg, cfg.hmax, cfg.gravity)
     return FitResult(best.params, best.q_base, t0, ft, frames, tr_best.states, best.iou, best.mean_iou,
-                     best.history, alts, bool(distinct), time.perf_counter() - t_start, len(starts), distinct,
+                     best.history, alts, bool(distinct), time.perf_counter() - t_start, n_starts, distinct,
                      float(cfg.gravity), float(cfg.hmax))

@@ -96,3 +96,55 @@ def test_two_solution_report_ignores_symmetry_and_flags_distinct_ties():
     other = Candidate(p, quat_mul(q, quat_exp(np.array([0.0, 0.0, 0.5]))), 1.0, 0.975, np.ones(10), [], 2)
     worse = Candidate(p, quat_mul(q, quat_exp(np.array([0.0, 0.0, 0.5]))), 1.0, 0.90, np.ones(10), [], 3)
     assert distinct_alternatives(best, [same, other, worse], body, times, 0.0) == [1]
+
+
+# a few iterations per stage: the checkpoint's bookkeeping, not the recovery, is under test here
+TINY = {"screen": [Stage(0.25, 10, 4, 1.0)], "screen_keep": [2], "refine": [Stage(0.25, None, 4, 1.0)],
+        "final": [Stage(0.25, None, 4, 0.0)], "multistart": "icosahedral"}
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_killed_fit_resumes_from_its_checkpoint_to_the_uninterrupted_result(tmp_path):
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    ref = fit_throw(th.masks, th.times, th.camera, body, guess, TINY)  # no checkpoint
+
+    ck = tmp_path / "stages.jsonl"
+    seen = []
+
+    def kill_after_ten(done, total, note):
+        seen.append(note)
+        if len(seen) == 10:
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        fit_throw(th.masks, th.times, th.camera, body, guess, TINY, on_step=kill_after_ten, checkpoint=ck)
+    assert ck.read_text().count('"key"') == 10  # each finished stage was logged as it ended
+
+    res = fit_throw(th.masks, th.times, th.camera, body, guess, TINY, checkpoint=ck)
+    assert res.replayed_stages == 10
+    np.testing.assert_array_equal(res.params, ref.params)  # bit-identical to the uninterrupted fit
+    np.testing.assert_array_equal(res.q0, ref.q0)
+    assert res.history == ref.history and res.mean_iou == ref.mean_iou
+    assert [c.cost for c in res.alternatives] == [c.cost for c in ref.alternatives]
+
+
+def test_checkpoint_of_other_inputs_is_moved_aside_not_replayed(tmp_path):
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    ck = tmp_path / "stages.jsonl"
+    fit_throw(th.masks, th.times, th.camera, body, guess, {**TINY, "multistart": "none"}, checkpoint=ck)
+    masks = th.masks.copy()
+    k = int(np.flatnonzero(masks.reshape(len(masks), -1).any(1))[3])
+    masks[k] = np.roll(masks[k], 2, axis=1)  # one silhouette moved by 2 px: another fit
+    res = fit_throw(masks, th.times, th.camera, body, guess, {**TINY, "multistart": "none"}, checkpoint=ck)
+    assert res.replayed_stages == 0
+    assert (tmp_path / "stages.stale-1.jsonl").is_file()
+    # and a changed setting is another fit too
+    res = fit_throw(masks, th.times, th.camera, body, guess, {**TINY, "multistart": "none", "hmax": 0.01},
+                    checkpoint=ck)
+    assert res.replayed_stages == 0
+    assert (tmp_path / "stages.stale-2.jsonl").is_file()
