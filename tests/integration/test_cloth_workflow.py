@@ -4,7 +4,8 @@ All planned outputs are created as empty files and recorded as up to date (``--t
 run then plans nothing; after a change of linen's ``per_fabric`` overrides it plans linen's fits,
 linen's selection and profile, and the validation and skirt matrices (which read every fabric),
 and nothing of satin's (its fits, its CMA-ES and joint fits of the method comparison) nor of the
-twin's.
+twin's. A rule that shares another stage's settings (the joint fit shares the annealing fit's)
+reads that stage's ``overrides:`` entry and then its own, and its own entry reruns it alone.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ def _smk(cfg: Path, *args: str) -> str:
     return p.stdout + p.stderr
 
 
-def _config(tmp: Path, per_fabric: dict) -> Path:
+def _config(tmp: Path, per_fabric: dict, overrides: dict | None = None) -> Path:
     cfg = {
         "results": str(tmp / "results"),
         "stages": {k: k == "cloth" for k in ("calibration_chessboard", "demo", "sweep_calibration", "rigid", "cloth",
@@ -37,10 +38,23 @@ def _config(tmp: Path, per_fabric: dict) -> Path:
                   "reality_hydra": "", "calibration_hydra": "", "per_fabric": per_fabric, "per_fabric_reality": {},
                   "twins": ["twin"], "skirt": True, "compare": ["satin"]},
     }
+    if overrides:
+        cfg["overrides"] = overrides
     p = tmp / "x.yaml"
     p.write_text(yaml.safe_dump(cfg))
     return p
 
+
+
+def _planned(cfg: Path) -> list[tuple[str, str]]:
+    plan = _smk(cfg, "-n", "-p")
+    jobs = []
+    for block in re.split(r"^(?=(?:local)?rule \w+:)", plan, flags=re.M):
+        m = re.match(r"(?:local)?rule (\w+):", block)
+        if m:
+            w = re.search(r"^\s+wildcards: ([^\n]*)", block, re.M)
+            jobs.append((m.group(1), w.group(1) if w else ""))
+    return sorted(set(jobs))
 
 
 def test_one_fabric_change_reruns_only_that_fabric(tmp_path):
@@ -54,17 +68,17 @@ def test_one_fabric_change_reruns_only_that_fabric(tmp_path):
     for o in outs:
         Path(o).parent.mkdir(parents=True, exist_ok=True)
         Path(o).touch()
-    _smk(cfg, "--touch", "-j1")
+    _smk(cfg, "--touch", "--forceall", "-j1")  # --forceall: every job records its provenance (params)
     assert "Nothing to be done" in _smk(cfg, "-n")
-    cfg = _config(tmp_path, {"linen": "cloth.fit.seed=1"})
-    plan = _smk(cfg, "-n", "-p")
-    jobs = []
-    for block in re.split(r"^(?=(?:local)?rule \w+:)", plan, flags=re.M):
-        m = re.match(r"(?:local)?rule (\w+):", block)
-        if m:
-            w = re.search(r"^\s+wildcards: ([^\n]*)", block, re.M)
-            jobs.append((m.group(1), w.group(1) if w else ""))
-    planned = sorted(set(jobs))
+    planned = _planned(_config(tmp_path, {"linen": "cloth.fit.seed=1"}))
     assert planned == [("all", ""), ("fit_cloth", "fabric=linen, trial=exp1"), ("fit_cloth", "fabric=linen, trial=exp2"),
                        ("profile_cloth", "fabric=linen"), ("select_cloth", "fabric=linen"), ("skirt_cloth", ""),
                        ("validate_cloth", "")], planned
+
+    # a rule that shares another stage's settings reads that stage's `overrides:` entry and then its
+    # own: the joint fit's own entry reruns the joint fit and the comparison that reads it, nothing else
+    planned = _planned(_config(tmp_path, {}, {"fit_cloth_joint": "cloth.fit.seed=3"}))
+    assert planned == [("all", ""), ("compare_cloth", ""), ("fit_cloth_joint", "fabric=satin")], planned
+    # and the shared entry reaches the annealing, CMA-ES and joint fits alike
+    planned = _planned(_config(tmp_path, {}, {"fit_cloth": "cloth.fit.seed=3"}))
+    assert {r for r, _ in planned} >= {"fit_cloth", "fit_cloth_cmaes", "fit_cloth_joint"}, planned

@@ -58,7 +58,7 @@ use rule calibrate_scene as calibrate_cloth_scene with:
         rrd=f"{RESULTS}/calibration/cloth/calibrate.rrd",
     params:
         out=get_out_dir,
-        extra=f"{stage_overrides('calibrate_scene')} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA}",
+        extra=f"{stage_overrides('calibrate_scene', 'calibrate_cloth_scene')} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA}",
     benchmark:
         f"{RESULTS}/benchmarks/calibrate_cloth.tsv"
     log:
@@ -310,7 +310,7 @@ rule score_cloth_twin_joint:
         ),
     params:
         out=get_out_dir,
-        extra=stage_overrides("score_cloth_twin"),
+        extra=stage_overrides("score_cloth_twin", "score_cloth_twin_joint"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -411,7 +411,7 @@ use rule fit_cloth as fit_cloth_cmaes with:
         rrd=f"{RESULTS}/cloth/fit_cmaes/{{fabric}}_{{trial}}/cloth.rrd",
     params:
         out=get_out_dir,
-        extra=f"{stage_overrides('fit_cloth')} cloth.fit.method=cmaes",
+        extra=f"{stage_overrides('fit_cloth', 'fit_cloth_cmaes')} cloth.fit.method=cmaes",
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -445,7 +445,7 @@ rule fit_cloth_joint:
     params:
         out=get_out_dir,
         footage=cloth_meta_folders,
-        extra=stage_overrides("fit_cloth"),
+        extra=stage_overrides("fit_cloth", "fit_cloth_joint"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:

@@ -7,13 +7,16 @@ SHARED = Path(config.get("shared_data", "../shared/data"))
 HYDRA_EXTRA = config.get("hydra_overrides", "")
 
 
-def stage_overrides(stage):
-    """Hydra overrides for one stage: the global ones, then `overrides: {<stage>: "..."}` from the config.
+def stage_overrides(*stages):
+    """Hydra overrides for one rule: the global ones, then `overrides: {<stage>: "..."}` from the
+    config for each of ``stages`` in order (a rule that shares another stage's settings, e.g.
+    `fit_cloth_cmaes`, passes that stage first and its own name last, so its own entry wins).
 
     They are a rule parameter, so changing a stage's overrides reruns that stage and what
     depends on it (rerun trigger `params`), and nothing else.
     """
-    own = config.get("overrides", {}).get(stage, "") or ""
+    ov = config.get("overrides", {}) or {}
+    own = " ".join(e for e in (ov.get(s, "") or "" for s in stages) if e)
     return f"paths.results={RESULTS} {HYDRA_EXTRA} {own}".strip()
 
 
