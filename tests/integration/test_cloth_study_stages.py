@@ -189,6 +189,12 @@ def test_skirt_matrix_prefers_the_matching_fabric(study):
     # the soft MuJoCo knit does
     assert E[0][0] < 0.5 * E[1][0], E
     assert doc["wins_per_footage"]["linen"] == 1 and doc["of"] == 2
+    # each column's verdict over the two fold-seeded starts: the paired margin is the matrix's difference
+    v = doc["verdicts"]
+    assert v["linen"]["rival"] == "knit" and v["linen"]["starts"] == 2
+    assert v["linen"]["margin"] == pytest.approx(E[0][0] - E[1][0], rel=1e-9)
+    assert v["linen"]["verdict"] in ("won", "undecided") and v["knit"]["verdict"] in ("won", "lost", "undecided")
+    assert sum(doc["decided"].values()) == 2
     for fab in ("linen", "knit"):
         assert (out / f"side_by_side_{fab}.mp4").stat().st_size > 1000
     meta = yaml.safe_load((res / "footage" / "skirt_knit" / "meta.yaml").read_text())

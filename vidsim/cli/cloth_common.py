@@ -197,16 +197,22 @@ def fabric_sets(node: DictConfig, where: str) -> tuple[list[str], list[str], lis
 
 
 def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictConfig, names: list[str],
-                  what: str, keep_diagonal: bool = False) -> tuple[np.ndarray, list]:
+                  what: str, keep_diagonal: bool = False, members: list | None = None) -> tuple[np.ndarray, list]:
     """Error of every parameter set (rows) on every footage folder (columns), seed Figure 8.
 
     Each set is simulated as it is (its own density: "fleece simulated against satin footage").
+
+    Args:
+        members: if given, a list that receives per cell ``members[i][j]`` the errors of the
+            objective's ensemble starts (a skirt's fold-seeded starts; one entry for a swatch).
 
     Returns:
         ``(E, diagonal)``: the (sets, footage) matrix and, with ``keep_diagonal``, per footage
         ``(trial, frames, EvalResult with images)`` of its own fabric's set (else an empty list).
     """
     E = np.zeros((len(param_sets), len(footage)))
+    if members is not None:
+        members[:] = [[[] for _ in footage] for _ in param_sets]
     diag = []
     prog = Progress(E.size, f"{what} matrix", enabled=cfg.log.progress)
     for j, f in enumerate(footage):
@@ -218,13 +224,15 @@ def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictCo
         for i, p in enumerate(param_sets):
             r = obj.evaluate_params(p, keep=keep_diagonal and i == j)
             E[i, j] = r.score
+            if members is not None:
+                members[i][j] = list(r.members[0]) if r.ok and r.members else []
             if keep_diagonal and i == j:
                 diag.append((tr, frames, r))
             prog.update(note=f"{names[i]} parameters on {names[j]} footage")
     return E, diag
 
 
-def matrix_figure(E: np.ndarray, names: list[str], xlabel: str, path: str | Path) -> int:
+def matrix_figure(E: np.ndarray, names: list[str], xlabel: str, path: str | Path, note: str = "") -> int:
     """Heatmap of an error matrix (each column over its minimum); returns the diagonal's column wins."""
     import matplotlib
 
@@ -246,7 +254,7 @@ def matrix_figure(E: np.ndarray, names: list[str], xlabel: str, path: str | Path
     ax.set_yticks(range(n), names)
     ax.set_xlabel(xlabel)
     ax.set_ylabel("selected parameters of")
-    ax.set_title(f"error / column minimum; diagonal wins {wins}/{n}", fontsize=9)
+    ax.set_title(f"error / column minimum; diagonal wins {wins}/{n}" + (f"\n{note}" if note else ""), fontsize=9)
     fig.colorbar(im, ax=ax, shrink=0.8)
     save_figure(fig, path)
     return wins
@@ -262,3 +270,38 @@ def irradiance_to_uint8(img: np.ndarray) -> np.ndarray:
     """A simulated (H, W) irradiance image scaled to 0-255 by its own maximum (for viewing)."""
     im = np.nan_to_num(np.asarray(img, float), nan=0.0)
     return np.clip(np.rint(255 * im / max(float(im.max()), 1e-9)), 0, 255).astype(np.uint8)
+
+
+def paired_margins(E: np.ndarray, members: list, z: float = 2.0) -> dict:
+    """How firmly each column's verdict (does the diagonal win?) is decided by an ensemble of starts.
+
+    For column ``j`` the diagonal is compared with the best other row (the lowest error; when the
+    diagonal is the lowest, the runner-up) start by start: the starts are the same for every
+    row (a skirt's fold-seeded starts depend on the skirt model and seed, not on the parameters),
+    so ``d_k = e_diag,k - e_other,k`` are paired differences. The verdict is *decided* when the
+    mean of ``d`` is more than ``z`` standard errors from zero; with fewer than two starts (or a
+    failed cell) it is undecided.
+
+    Returns:
+        ``{column index: {"rival": row, "margin": mean d (negative: the diagonal is better),
+        "se": standard error, "decided": bool, "members": n}}``.
+    """
+    out = {}
+    n_rows = E.shape[0]
+    for j in range(E.shape[1]):
+        others = [i for i in range(n_rows) if i != j]
+        if not others or j >= n_rows:
+            continue
+        rival = min(others, key=lambda i: E[i, j])
+        a = np.asarray(members[j][j], float)
+        b = np.asarray(members[rival][j], float)
+        n = int(min(a.size, b.size))
+        if n >= 2 and a.size == b.size and np.all(np.isfinite(a)) and np.all(np.isfinite(b)):
+            d = a - b
+            margin, se = float(d.mean()), float(d.std(ddof=1) / np.sqrt(n))
+            decided = bool(abs(margin) > z * se)
+        else:
+            margin = float(E[j, j] - E[rival, j]) if np.all(np.isfinite([E[j, j], E[rival, j]])) else float("nan")
+            se, decided = float("nan"), False
+        out[j] = {"rival": int(rival), "margin": margin, "se": se, "decided": decided, "members": n}
+    return out

@@ -12,7 +12,10 @@ camera and projector, and scores it against every skirt footage with the swatch 
 over ``cloth.skirt.model_fold_members`` fold-seeded starts (the footage's fold pattern is not a
 known input; the videos show the first member):
 ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: skirt footage; the diagonal should win
-each column), ``skirt.yaml`` (matrix, wins, the model skirt's settings), per fabric ``side_by_side_<fabric>.mp4`` (footage |
+each column), ``skirt.yaml`` (matrix, wins, the model skirt's settings, and per footage a
+``verdicts`` entry: its own set against the best other set, start by start over the fold-seeded
+starts, ``won``/``lost`` when the mean paired difference is beyond 2 standard errors, else
+``undecided``: the unknown initial fold pattern alone could turn the column), per fabric ``side_by_side_<fabric>.mp4`` (footage |
 simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
 """
 
@@ -30,6 +33,7 @@ from vidsim.cli.cloth_common import (
     irradiance_to_uint8,
     matrix_csv,
     matrix_figure,
+    paired_margins,
 )
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.io.video import write_animation
@@ -41,13 +45,18 @@ def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
     sk = cfg.cloth.skirt
     fabrics, pfiles, footage, sets = fabric_sets(cfg.cloth.skirt, "cloth.skirt")
-    E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True)
+    cells: list = []
+    E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True, members=cells)
     n = len(fabrics)
     wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]
-    write_text(out / "matrix.csv", matrix_csv(E, fabrics))
-    matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png")
-    nv = int(sk.video_frames)
     members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
+    verdicts = _verdicts(E, cells, fabrics, wins)
+    tally = {k: sum(v["verdict"] == k for v in verdicts.values()) for k in ("won", "lost", "undecided")}
+    note = (f"decided by the {members} fold-seeded starts (paired, 2 SE): won {tally['won']}, lost {tally['lost']}, "
+            f"undecided {tally['undecided']}") if members >= 2 else ""
+    write_text(out / "matrix.csv", matrix_csv(E, fabrics))
+    matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png", note)
+    nv = int(sk.video_frames)
     stills = []
     with make_logger(out / "skirt.rrd", "vidsim.skirt_cloth", cfg.log.rerun) as lg:
         for fab, (tr, frames, r) in zip(fabrics, diag):
@@ -70,13 +79,25 @@ def run(cfg: DictConfig) -> None:
                           float(r.e_fold[0][k] + cfg.cloth.fit.alpha * r.e_silh[0][k]))
     _stills_figure(stills, out / "side_by_side.png")
     write_yaml(out / "skirt.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
-                                    "of": n, "wins_per_footage": dict(zip(fabrics, wins)), "params": pfiles,
+                                    "of": n, "wins_per_footage": dict(zip(fabrics, wins)),
+                                    "verdicts": verdicts, "decided": tally, "params": pfiles,
                                     "footage": footage,
                                     "model": {"rings": int(sk.model_rings), "around": int(sk.model_around),
                                               "rest_bend": str(sk.model_rest_bend), "fold_members": members,
                                               "fold_amplitude_m": float(sk.model_fold_amplitude),
                                               "fold_seed": int(sk.model_fold_seed)}})
-    print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}", flush=True)
+    print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}" + (f"; {note}" if note else ""), flush=True)
+
+
+def _verdicts(E: np.ndarray, cells: list, fabrics: list[str], wins: list[int]) -> dict:
+    """Per skirt footage: does its own fabric's set win, against which rival, and is that decided by
+    the fold-seeded starts (:func:`vidsim.cli.cloth_common.paired_margins`)?"""
+    out = {}
+    for j, m in paired_margins(E, cells).items():
+        verdict = ("won" if wins[j] else "lost") if m["decided"] else "undecided"
+        out[fabrics[j]] = {"verdict": verdict, "rival": fabrics[m["rival"]], "margin": m["margin"], "se": m["se"],
+                           "starts": m["members"]}
+    return out
 
 
 def _tris(tr, cfg: DictConfig) -> np.ndarray:

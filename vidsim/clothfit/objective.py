@@ -170,6 +170,8 @@ class EvalResult:
         timing: seconds spent in ``simulate``, ``render``, ``anglemap``, ``metric``.
         positions: per-trial (T, N, 3) simulated vertices (only when requested).
         theta_sim, sil_sim: per-trial simulated angle maps / silhouettes (only when requested).
+        members: per trial, the error of each start of its ensemble (a skirt's fold-seeded starts;
+            one entry otherwise); ``per_trial`` is their mean.
     """
 
     score: float
@@ -183,6 +185,7 @@ class EvalResult:
     theta_sim: list[np.ndarray] = field(default_factory=list)
     sil_sim: list[np.ndarray] = field(default_factory=list)
     images: list[np.ndarray] = field(default_factory=list)
+    members: list[list[float]] = field(default_factory=list)
 
 
 def space_from_config(space: dict) -> Space:
@@ -369,6 +372,7 @@ class ClothObjective:
                     out.sil_sim.append(sil)
                     out.images.append(img)
             per.append(float(np.mean(m_e)))
+            out.members.append([float(x) for x in m_e])
             ef.append(np.mean(m_fold, axis=0))
             es.append(np.mean(m_silh, axis=0))
         out.score = float(sum(per))

@@ -1,0 +1,51 @@
+"""Paired verdicts of a fabric matrix column over an ensemble of starts (the skirt's fold-seeded starts)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vidsim.cli.cloth_common import paired_margins
+
+
+def _matrix(members):
+    return np.array([[np.mean(c) for c in row] for row in members])
+
+
+def test_a_consistent_small_win_is_decided_and_a_noisy_one_is_not():
+    rng = np.random.default_rng(0)
+    start = rng.normal(0.0, 30.0, 8)  # the fold pattern moves every row's error alike
+    members = [
+        # column 0: the diagonal is 2 better than row 1 at every start: decided although the starts spread by 30
+        # column 1: row 1's own set is better by 2 on average, but by +-20 start to start: undecided
+        [list(100 + start), list(100 + start)],
+        [list(102 + start), list(99 + start + np.array([20.0, -20.0, 15.0, -25.0, 18.0, -22.0, 19.0, -13.0]))],
+    ]
+    E = _matrix(members)
+    m = paired_margins(E, members)
+    assert m[0]["rival"] == 1 and m[0]["margin"] == pytest.approx(-2.0) and m[0]["decided"]
+    assert m[0]["se"] == pytest.approx(0.0, abs=1e-9)
+    assert m[1]["rival"] == 0 and not m[1]["decided"] and m[1]["se"] > 3.0
+    # the mean paired difference is the difference of the matrix entries (each entry is the starts' mean)
+    for j, r in m.items():
+        assert r["margin"] == pytest.approx(E[j, j] - E[r["rival"], j])
+
+
+def test_a_lost_column_is_decided_against_the_best_other_row():
+    members = [[[10.0, 11.0, 12.0], [5.0, 5.0, 5.0]],
+               [[20.0, 21.0, 22.0], [9.0, 9.5, 9.0]],
+               [[8.0, 9.0, 10.5], [30.0, 30.0, 30.0]]]
+    E = _matrix(members)
+    m = paired_margins(E, members)
+    assert m[0]["rival"] == 2 and m[0]["margin"] > 0 and m[0]["decided"]  # row 2 beats the diagonal at every start
+    assert m[1]["rival"] == 0  # the diagonal (9.17) loses to row 0 (5.0)
+    assert m[1]["margin"] == pytest.approx(np.mean([9.0, 9.5, 9.0]) - 5.0) and m[1]["decided"]
+
+
+def test_one_start_or_a_failed_cell_is_undecided():
+    E = np.array([[1.0, 2.0], [3.0, 1.0]])
+    m = paired_margins(E, [[[1.0], [2.0]], [[3.0], [1.0]]])
+    assert not m[0]["decided"] and m[0]["members"] == 1 and np.isnan(m[0]["se"])
+    assert m[0]["margin"] == pytest.approx(-2.0)
+    m = paired_margins(E, [[[1.0, 1.1], []], [[3.0, 3.1], [1.0, 1.2]]])
+    assert not m[1]["decided"]
