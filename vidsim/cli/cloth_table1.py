@@ -9,7 +9,7 @@ cloth.table1.params=[<params.yaml>,...] cloth.table1.summaries=[<summary.csv>,..
 
 Outputs: ``table1_intervals.csv`` (one row per fabric and parameter: selected value, median, q05,
 q95, whether the selected value lies inside its interval, and the interval's width: q95/q05 for
-positive parameters spanning more than a factor 1.5, else q95 - q05), ``table1_intervals.png``.
+positive parameters spanning more than a factor 1.5, else the half-width +-(q95 - q05)/2), ``table1_intervals.png``.
 """
 
 from __future__ import annotations

@@ -21,7 +21,6 @@ evaluation: a killed run replays them and resumes its chain). Never reads truth.
 from __future__ import annotations
 
 import dataclasses
-import re
 import shutil
 import time
 from pathlib import Path
@@ -61,6 +60,11 @@ def read_fits(paths: list[str]) -> tuple[list[dict], list[str], dict, dict]:
                 raise ClothStageError(f"{p}: field '{k}' is missing")
         docs.append(d)
     est = list(docs[0]["estimated"])
+    for p, d in zip(paths, docs):
+        sp = d["config"].get("space") if isinstance(d["config"], dict) else None
+        missing = [n for n in est if not isinstance(sp, dict) or n not in sp]
+        if missing:
+            raise ClothStageError(f"{p}: config.space has no range for the estimated parameter(s) {missing}")
     space = {n: docs[0]["config"]["space"][n] for n in est}
     fixed = dict(docs[0]["config"].get("fixed", {}) or {})
     for p, d in zip(paths[1:], docs[1:]):
@@ -69,6 +73,14 @@ def read_fits(paths: list[str]) -> tuple[list[dict], list[str], dict, dict]:
             raise ClothStageError(f"{p}: estimated parameters, space or fixed values differ from {paths[0]}; "
                                   "the fits of one fabric must estimate the same parameters")
     return docs, est, space, fixed
+
+
+def _need_params(doc: dict, names: list[str], where: str) -> None:
+    """A clear error when a parameter document lacks an estimated parameter (not a bare KeyError)."""
+    got = doc.get("params") if isinstance(doc, dict) else None
+    missing = [n for n in names if not isinstance(got, dict) or n not in got]
+    if missing:
+        raise ClothStageError(f"{where}: 'params' lacks the estimated parameter(s) {missing} (expected all of {names})")
 
 
 def check_figure(check: dict, w: float, path: Path) -> None:
@@ -82,6 +94,12 @@ def check_figure(check: dict, w: float, path: Path) -> None:
     ls = np.asarray(check["loss_surrogate"], float)
     ok = np.isfinite(lt)
     fig, ax = plt.subplots(figsize=(4.2, 4.0))
+    if not ok.any():  # every check draw failed to simulate: say so, do not crash after the sampling
+        ax.text(0.5, 0.5, f"all {len(lt)} check draws failed to simulate:\nno comparison", ha="center",
+                va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        save_figure(fig, path)
+        return
     ax.plot(lt[ok], ls[ok], "o", ms=3, color="C0")
     lo, hi = float(min(lt[ok].min(), ls[ok].min())), float(max(lt[ok].max(), ls[ok].max()))
     ax.plot([lo, hi], [lo, hi], "k-", lw=0.7)
@@ -147,12 +165,14 @@ def run(cfg: DictConfig) -> None:
         else:
             cache_notes.append({"fit": fp, "n": 0, "used": False})
         cached.append((U, f) if use else (np.zeros((0, space.dim)), np.zeros(0)))
+    _need_params(sel, space.names, f"{pc.params}")
     theta_sel = np.array([float(sel["params"][n]) for n in space.names])
     center = space.to_unit(theta_sel)
     cands = []
     for row in sel.get("rows", []) or []:
         errs = row.get("errors", {}) or {}
         if len(errs) == len(trials):
+            _need_params(row, space.names, f"{pc.params}: rows[{row.get('candidate', '?')}]")
             th = np.array([float(row["params"][n]) for n in space.names])
             cands.append((space.to_unit(th), float(sum(float(v) for v in errs.values()))))
     s = settings_from_config(pc)
@@ -206,10 +226,8 @@ def run(cfg: DictConfig) -> None:
     save_figure(correlation_figure(corr, dnames, "cloth posterior correlation (log10 of log-scaled parameters)"),
                 tmp / "correlation.png")
     check_figure(post.check, post.w, tmp / "check.png")
-    # the last refinement round's chain (by number; chains moved aside as stale do not match)
-    rounds = [(int(m.group(1)), p) for p in tmp.glob("chain_r*.npz") if (m := re.fullmatch(r"chain_r(\d+)\.npz", p.name))]
-    last = max(rounds)[1]
-    shutil.copyfile(last, tmp / "chain.npz")
+    # the chain the summaries were made from (a killed earlier run may have left a later round's file)
+    shutil.copyfile(post.chain_file, tmp / "chain.npz")
     replace_dir(tmp, out)
     print(f"posterior_cloth: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "
           f"ESS {diag['ess']:.0f}, surrogate max error {check['max_abs_error_logp']:.3g} log-density units "

@@ -32,7 +32,8 @@ the measured roughness variance).
 
 **Surrogate**: one GP per trial (:mod:`vidsim.posterior.gp`) on the trial's cached annealing
 evaluations (``evals.jsonl`` of its fit: that trial's error only) plus every design and check
-point (both trials). Targets are clipped at ``min + clip_logp / w`` (a region more than
+point (both trials). Targets are clipped at ``min + max(clip_logp / w, 6 sigma)`` (sigma: the
+measured roughness; a region more than
 ``clip_logp`` log-density units below the mode carries no posterior mass, and the emulator need
 not follow the loss up its far walls); the GP's mean is fixed at that level, so unexplored regions
 count as bad. Design rounds: the first at the selected estimate with half-width
@@ -158,6 +159,7 @@ class ClothPosteriorResult:
     seconds: dict
     surrogates: list[GP]
     weights: dict = field(default_factory=dict)
+    chain_file: Path | None = None  # the chain file of ``chain`` (None without a work folder)
 
     def samples(self) -> np.ndarray:
         return self.chain.samples()
@@ -487,6 +489,9 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
         Pp, Pm, dl = [], [], []
         for up, um in zip(plus, minus):
             rp, rm = true_eval(up), true_eval(um)
+            for r_ok in (rp, rm):  # the frames' trials, from any run that simulated (the centre may not)
+                if r_ok is not None and trial_of is None:
+                    trial_of = np.concatenate([np.full(len(f), t) for t, f in enumerate(r_ok.frames)])
             if rp is None or rm is None:
                 continue
             lp = np.concatenate([f / len(f) for f in rp.frames])
@@ -523,6 +528,7 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
     # ---------------------------------------------------------------- sample, check, refine
     check: dict = {}
     chain = None
+    chain_file = None
     for k_ref in range(s.refine_rounds + 1):
         t0 = time.perf_counter()
         gps = fit_surrogates(w, c)
@@ -546,6 +552,7 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
         t0 = time.perf_counter()
         path = wd / f"chain_r{k_ref}.npz" if wd is not None else None
         chain = sample(log_prob, c, cov, s.sampler, path, on_chunk, vectorize=True)
+        chain_file = path
         secs["sampling"] += time.perf_counter() - t0
         say(f"chain {k_ref}: {chain.n_steps} steps, tau_max {np.max(chain.tau):.1f}, converged {chain.converged}")
         # check at posterior draws
@@ -644,4 +651,4 @@ def cloth_posterior(evaluate: Callable[[np.ndarray], FrameEval], dim: int, cente
     truth.cache.close()
     return ClothPosteriorResult(chain, float(w), c, Hpd, J_final, float(l_star), check, bool(reasons), reasons, rounds,
                                 len(truth.cache.store), truth.cache.n_new, secs, gps,
-                                {**w_parts, "roughness_sd_per_trial": rough_sd.tolist()})
+                                {**w_parts, "roughness_sd_per_trial": rough_sd.tolist()}, chain_file)

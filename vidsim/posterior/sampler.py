@@ -10,7 +10,8 @@ Convergence is read from emcee's integrated autocorrelation time ``tau`` (per pa
 whole chain): a chain is ``converged`` only when its length is at least ``min_tau_multiple``
 (default 50) times the largest ``tau``. A shorter chain is still summarised but is reported as
 ``converged: false``, never silently accepted. Burn-in: the first ``2 tau_max`` steps (at least
-10 % of the chain) are discarded before summarising.
+10 % of the chain, at most half of it; half when ``tau`` is not finite) are discarded before
+summarising.
 """
 
 from __future__ import annotations
@@ -82,7 +83,10 @@ class Chain:
         tau: (D,) integrated autocorrelation time per coordinate, steps.
         n_steps: S; burn: steps discarded before summarising.
         converged: ``n_steps >= min_tau_multiple * max(tau)``.
-        acceptance: mean acceptance fraction.
+        acceptance: mean acceptance fraction over the whole chain: the fraction of moves after which a
+            walker stands somewhere else (an accepted emcee move moves every coordinate; a rejected
+            one none); read from the chain itself, so a resumed chain reports what an
+            uninterrupted one does. Each walker's first move (from the start point) is not counted.
         ess: effective sample size, ``(S - burn) * W / max(tau)``.
         seconds: sampling wall time of this run (excludes replayed chunks).
         n_evals: log-posterior evaluations made in this run.
@@ -275,7 +279,7 @@ def sample(log_prob: Callable[[np.ndarray], float], center: np.ndarray, cov: np.
     S = chain.shape[0]
     burn = int(min(S // 2, max(np.ceil(2 * tmax) if np.isfinite(tmax) else S // 2, S // 10)))
     converged = bool(np.isfinite(tmax) and S >= cfg.min_tau_multiple * tmax)
-    acc = acc_num if acc_num else float(np.mean(np.diff(chain[:, :, 0], axis=0) != 0))
+    acc = float(np.mean(np.any(np.diff(chain, axis=0) != 0, axis=2))) if S >= 2 else float("nan")
     ess = float((S - burn) * W / tmax) if np.isfinite(tmax) and tmax > 0 else 0.0
     return Chain(chain, lp, tau, S, burn, converged, acc, ess, time.perf_counter() - t_start, n_evals, history)
 

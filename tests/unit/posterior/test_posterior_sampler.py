@@ -61,6 +61,14 @@ def test_resume_is_bit_identical(tmp_path) -> None:
     # own count for the first chunk also includes the move from the starting ball)
     assert abs(resumed.history[1]["acceptance"] - full.history[1]["acceptance"]) < 1e-12
     assert abs(resumed.history[0]["acceptance"] - full.history[0]["acceptance"]) < 0.05
+    # the chain's acceptance is the whole chain's (not the last chunk's), the same after a resume and
+    # on a rerun of a finished chain file (which samples nothing)
+    assert resumed.acceptance == full.acceptance
+    chunks = [h["acceptance"] for h in full.history]
+    assert abs(full.acceptance - np.mean(chunks)) < 0.01 and full.acceptance != chunks[-1]
+    again = sample(_logp, MEAN, COV, SamplerConfig(n_walkers=8, chunk=50, min_steps=200, max_steps=200, seed=5),
+                   tmp_path / "b.npz")
+    assert again.n_evals == 0 and again.acceptance == full.acceptance
 
 
 def test_a_chain_of_another_posterior_is_not_resumed(tmp_path) -> None:
