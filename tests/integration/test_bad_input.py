@@ -194,3 +194,18 @@ def test_twin_score_perturbation_settings_are_checked_first(tmp_path, override):
                         f"paths.out={tmp_path}/o", "cloth.twin.params=p.yaml", "cloth.twin.footage=f", override],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "cloth.twin.perturb_sigma" in r.stderr and "Traceback" not in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("module,override,expected", [
+    ("reality_fluid", "fluid.reality.fps=0", "fluid.reality.fps=0.0: expected a finite number > 0"),
+    ("reality_fluid", "fluid.reality.jacobi_iters=0", "fluid.reality.jacobi_iters=0: expected a whole number > 0"),
+    ("fluid_piv_footage", "fluid.piv.fps=0", "fluid.piv.fps=0.0: expected a finite number > 0"),
+    ("fluid_flow", "fluid.flow.arrow_step=0", "fluid.flow.arrow_step=0: expected a whole number > 0"),
+])
+def test_fluid_rates_and_counts_are_checked_before_any_work(tmp_path, module, override, expected):
+    """A zero frame rate wrote times.csv = nan, inf, ... and exited 0; zero Jacobi iterations skipped the
+    projection silently; a zero arrow step crashed after the flow was written (review, 5 Dec 2026)."""
+    r = subprocess.run([sys.executable, "-m", f"vidsim.cli.{module}", f"paths.results={tmp_path}",
+                        f"paths.out={tmp_path}/o", override], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert not (tmp_path / "o").exists()

@@ -158,7 +158,8 @@ def run(cfg: DictConfig) -> None:
         raise ConfigError(f"fluid.edit.gif_frames={ec.gif_frames}, expected >= 1 frame")
     n_frames = int(ec.frames) if ec.frames is not None else spec.render.frames
     if n_frames < 2:
-        raise ConfigError(f"fluid.edit.frames={n_frames}, expected >= 2 output frames")
+        where = "fluid.edit.frames" if ec.frames is not None else f"{ec.spec}: render.frames"
+        raise ConfigError(f"{where}={n_frames}, expected >= 2 output frames")
     label_folder = resolve_footage(spec.footage, cfg.paths.results) if spec.footage else None
     folder = Path(cfg.paths.footage) if cfg.paths.footage else label_folder
     if folder is None:

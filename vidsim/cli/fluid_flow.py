@@ -76,6 +76,9 @@ def run(cfg: DictConfig) -> None:
     for key in ("method", "baseline"):
         if fc[key] not in METHODS:
             raise ConfigError(f"fluid.flow.{key}={fc[key]!r}, expected one of {METHODS}")
+    from vidsim.config.fluid import check_fluid_numbers
+
+    check_fluid_numbers(fc, "fluid.flow", {"arrow_step": ("int", 0)})
     if fc.temporal_sigma < 0:
         raise ConfigError(f"fluid.flow.temporal_sigma={fc.temporal_sigma}, expected >= 0 frames")
     if not str(cfg.paths.footage).strip():

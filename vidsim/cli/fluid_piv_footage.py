@@ -34,6 +34,9 @@ def run(cfg: DictConfig) -> None:
         raise ConfigError(f"fluid.piv.name={p.name!r}, expected one of {PIV_RECORDINGS}")
     if p.downsample < 1:
         raise ConfigError(f"fluid.piv.downsample={p.downsample}, expected an integer >= 1")
+    from vidsim.config.fluid import check_fluid_numbers
+
+    check_fluid_numbers(p, "fluid.piv", {"fps": ("float", 0.0)})
     src = Path(cfg.paths.footage)
     if not src.is_dir():
         raise FootageError(f"paths.footage={str(src)!r}: PIV recording folder is missing")

@@ -35,6 +35,9 @@ def run(cfg: DictConfig) -> None:
     r = cfg.fluid.reality
     if r.scene not in SYNTHETIC_SCENES:
         raise ConfigError(f"fluid.reality.scene={r.scene!r}, expected one of {SYNTHETIC_SCENES}")
+    from vidsim.config.fluid import check_fluid_numbers
+
+    check_fluid_numbers(r, "fluid.reality", {"fps": ("float", 0.0), "jacobi_iters": ("int", 0)})
     from vidsim.reality.fluid import make_scene
 
     out = Path(cfg.paths.out)

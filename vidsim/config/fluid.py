@@ -91,3 +91,23 @@ class FluidConfig:
     flow: FluidFlowConfig = field(default_factory=FluidFlowConfig)
     edit: FluidEditConfig = field(default_factory=FluidEditConfig)
     inputs: list[str] = field(default_factory=list)
+
+
+def check_fluid_numbers(node, prefix: str, rules: dict) -> None:
+    """Refuse a non-physical or meaningless setting with one line naming it (``ConfigError``).
+
+    ``rules``: ``{field: (kind, lower bound)}`` with kind ``"int"`` or ``"float"``; the value must
+    be a finite number of that kind strictly above the bound.
+    """
+    import math
+
+    from vidsim.errors import ConfigError
+
+    for name, (kind, lo) in rules.items():
+        v = getattr(node, name)
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v)) and float(v) > lo
+        if ok and kind == "int":
+            ok = float(v) == int(v)
+        if not ok:
+            what = "a whole number" if kind == "int" else "a finite number"
+            raise ConfigError(f"{prefix}.{name}={v!r}: expected {what} > {lo:g}")

@@ -58,7 +58,8 @@ def patch_distance_ratio(out_frames: np.ndarray, src_frames: np.ndarray, patch: 
     """Nearest-source-patch distance of output patches over the source's own self-distance.
 
     Database: source patches (stride 2) of 8 frames spread over the clip. Output patches
-    (random positions of 6 output frames) take their nearest database patch anywhere. The
+    (``n_query`` random positions, each in a random output frame) take their nearest database
+    patch anywhere. The
     baseline takes held-out source patches (other frames) and their nearest database patch
     that does not overlap them spatially (any frame): the distance from a piece of the texture
     to the rest of the texture, not to itself a frame later. Distances are RMS per colour

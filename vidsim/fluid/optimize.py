@@ -100,11 +100,11 @@ def trace_particles(v, particles, desired, sink_boxes, sink_id, solid, step, max
         xs[0, 0] = x
         xs[0, 1] = y
         n = 0
-        code = _terminal(x, y, sink_id, solid)
-        if code == desired[p]:
-            code = code  # a source node inside its own sink has arrived
-        elif code >= -1:
-            code = -3  # leave the source region even if it overlaps another sink/obstacle
+        start = _terminal(x, y, sink_id, solid)
+        # a source node inside another sink or an obstacle: the particle leaves that region before
+        # it can end anywhere (it does not end where it starts); inside its own sink it has arrived
+        escaping = start >= -1 and start != desired[p]
+        code = start if start == desired[p] else -3
         while n < max_steps:
             val, _, _, _, _, _, _ = _bilinear(v, x, y)
             s = np.sqrt(val[0] ** 2 + val[1] ** 2 + _EPS**2)
@@ -114,6 +114,10 @@ def trace_particles(v, particles, desired, sink_boxes, sink_id, solid, step, max
             xs[n, 0] = x
             xs[n, 1] = y
             code = _terminal(x, y, sink_id, solid)
+            if escaping:
+                if code == start:
+                    continue  # still inside the region it started in
+                escaping = False
             if code != -3:
                 break
         exits[p, 0] = x
@@ -513,8 +517,8 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
             if on_iter is not None:
                 on_iter(it, {"v": v, "step": step, "it": it, "hist": np.array(hist)})
             continue
-        # accept a lower objective only if no particle is lost from its desired sink: the
-        # smoothness and neighbourhood terms may not buy their decrease with flow conservation
+        # accept a lower objective only if the share of particles reaching their desired sink does not
+        # fall: the smoothness and neighbourhood terms may not buy their decrease with flow conservation
         if en_ < e and obj.last_fraction >= frac:
             v, e, g, parts, frac = vn, en_, gn_, pn, obj.last_fraction
             hist.append(e)

@@ -76,12 +76,9 @@ def advect_velocity(u: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
-def project(u: np.ndarray, solid: np.ndarray, open_: np.ndarray, iters: int) -> np.ndarray:
-    """Make ``u`` (H,W,2) divergence free; ``solid`` cells have zero velocity and Neumann
-    pressure, ``open_`` cells have zero pressure (outflow). Frame edges are solid unless open.
-
-    Returns the pressure (H,W).
-    """
+def solver_divergence(u: np.ndarray, solid: np.ndarray, open_: np.ndarray) -> np.ndarray:
+    """Divergence (H,W) of ``u`` (H,W,2) as :func:`project` sees it: central differences, zero
+    velocity in solid neighbours and beyond closed frame edges, zero-gradient beyond open ones."""
     h, w, _ = u.shape
     div = np.zeros((h, w))
     for i in range(h):
@@ -93,6 +90,28 @@ def project(u: np.ndarray, solid: np.ndarray, open_: np.ndarray, iters: int) -> 
             uyd = u[i + 1, j, 1] if i + 1 < h and not solid[i + 1, j] else (u[i, j, 1] if i + 1 >= h and open_[i, j] else 0.0)
             uyu = u[i - 1, j, 1] if i - 1 >= 0 and not solid[i - 1, j] else (u[i, j, 1] if i - 1 < 0 and open_[i, j] else 0.0)
             div[i, j] = 0.5 * (uxr - uxl + uyd - uyu)
+    return div
+
+
+@njit(cache=True)
+def project(u: np.ndarray, solid: np.ndarray, open_: np.ndarray, iters: int) -> np.ndarray:
+    """Remove most of the divergence of ``u`` (H,W,2), in place; ``solid`` cells have zero velocity
+    and Neumann pressure, ``open_`` cells have zero pressure (outflow). Frame edges are solid unless open.
+
+    This is Stam's collocated *approximate* projection (stable fluids): a compact 5-point pressure
+    Laplacian with central-difference divergence and gradient, whose composition is the wide
+    Laplacian, so the result is not exactly divergence free. Measured on a smooth random 48x48 field
+    with a 6x6 obstacle (``tests/unit/fluid/test_fluid_reality.py``, :func:`solver_divergence`),
+    400 iterations: the mean |div| drops by about 88 % in the interior and by about 60 % in the
+    cells next to the obstacle and the closed frame walls, where 2000 iterations do no better (the
+    stencils' mismatch is largest there); with the reality's default 60 iterations
+    (``fluid.reality.jacobi_iters``) about 73 % in the interior and 50-57 % at the boundaries. The footage's truth is the field that actually moved the texture, so it is
+    consistent whatever is left.
+
+    Returns the pressure (H,W).
+    """
+    h, w, _ = u.shape
+    div = solver_divergence(u, solid, open_)
     p = np.zeros((h, w))
     pn = np.zeros((h, w))
     for _ in range(iters):

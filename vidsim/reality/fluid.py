@@ -1,7 +1,8 @@
 """Synthetic fluid footage with known velocity: a waterfall, a stream with a boat, a flame.
 
-Reality side of the fluid pipeline: an incompressible stable-fluids solver
-(:mod:`vidsim.fluid.stable`) with obstacles advects a foam-like noise texture and dye; the
+Reality side of the fluid pipeline: a stable-fluids solver (:mod:`vidsim.fluid.stable`; Stam's
+approximate projection, so nearly but not exactly incompressible, least so next to obstacles and
+walls) with obstacles advects a foam-like noise texture and dye; the
 frames are rendered with a static background and camera noise, and the true per-frame
 velocity (pixels per frame, the field that moved the texture from frame t to t+1) is kept
 apart as truth. Estimators must read only ``frames``.

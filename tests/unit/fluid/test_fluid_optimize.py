@@ -128,3 +128,27 @@ def test_crossing_layout_harmonic_paths_then_optimisation():
     res = edit_field(vf, spec)
     print("crossing layout:", res.figures["fraction_in_desired_sink_init"], "->", res.figures["fraction_in_desired_sink"])
     assert res.figures["fraction_in_desired_sink"] >= 0.98  # measured 1.0 (init and after)
+
+
+def test_a_particle_starting_inside_another_sink_leaves_it_first():
+    """A source node that lies in another sink (allowed by the edit spec) must not end there after
+    one step: with a uniform +x field it crosses that sink and reaches the one it wants."""
+    from vidsim.fluid.optimize import trace_particles
+
+    h, w = 10, 16
+    sink_id = -np.ones((h, w), np.int64)
+    sink_id[:, 12:16] = 0  # the wanted sink, on the right
+    sink_id[:, 0:4] = 1  # another sink, on the left, around the source node
+    boxes = np.array([[12, 0, 15, h - 1], [0, 0, 3, h - 1]], float)  # x0, y0, x1, y1 in nodes
+    solid = np.zeros((h, w), bool)
+    v = np.zeros((h, w, 2))
+    v[..., 0] = 1.0
+    parts = np.array([[2.0, 5.0], [5.0, 5.0]])
+    exits, codes, errs, _ = trace_particles(v, parts, np.array([0, 0], np.int64), boxes, sink_id, solid, 0.5, 200,
+                                            False)
+    assert list(codes) == [0, 0] and np.allclose(errs, 0.0)
+    assert exits[0, 0] >= 11.5
+    # against the field it crosses the sink it started in and leaves the frame on the left
+    v[..., 0] = -1.0
+    _, codes, errs, _ = trace_particles(v, parts[:1], np.array([0], np.int64), boxes, sink_id, solid, 0.5, 200, False)
+    assert codes[0] == -2 and errs[0] > 0  # it leaves the frame on the left, far from sink 0
