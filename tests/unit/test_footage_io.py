@@ -139,3 +139,50 @@ def test_a_finished_folder_replaces_the_old_one_and_its_stale_truth(tmp_path):
     tmp.mkdir()
     replace_dir(tmp, tmp_path / "fresh")
     assert (tmp_path / "fresh").is_dir() and not tmp.exists()
+
+
+def test_video_with_times_csv_read_in_part(tmp_path):
+    """max_frames on a video folder with its own times.csv: the first times go with the first frames
+    (was '10 timestamps for 5 frames'); a times.csv of binary bytes is named, not a UnicodeDecodeError."""
+    from vidsim.io.video import write_animation
+
+    folder = tmp_path / "v"
+    folder.mkdir()
+    frames = np.zeros((10, 48, 64, 3), np.uint8)
+    frames[:, 10:20, 10:20] = 200
+    write_animation(folder / "clip.mp4", frames, 30.0)
+    times = np.arange(10) / 25.0 + 0.5
+    (folder / "times.csv").write_text("t\n" + "".join(f"{t}\n" for t in times))
+    (folder / "calibration.yaml").write_text(yaml.safe_dump({"camera": _cam().to_dict()}))
+    (folder / "meta.yaml").write_text(yaml.safe_dump({"object": "box"}))
+    fo = read_footage(folder, max_frames=5)
+    assert fo.frames.shape[0] == 5 and np.allclose(fo.times, times[:5])
+    assert read_footage(folder).frames.shape[0] == 10
+    (folder / "times.csv").write_bytes(bytes(range(128, 256)) * 4)
+    with pytest.raises(FootageError, match="times.csv: not a text file"):
+        read_footage(folder)
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("width", "abc", "field 'width' must be a whole number"),
+    ("t", "abc", "field 't' is not numeric"),
+    ("dist", [0.1, 0, 0, 0, 0, 0.2, 0, 0], "only OpenCV's five-coefficient model"),
+])
+def test_calibration_fields_of_the_wrong_kind_are_named(tmp_path, rng, field, value, message):
+    _write(tmp_path / "f", rng)
+    p = tmp_path / "f" / "calibration.yaml"
+    d = yaml.safe_load(p.read_text())
+    d["camera"][field] = value
+    p.write_text(yaml.safe_dump(d))
+    with pytest.raises(FootageError, match=f"calibration.yaml.*{message}"):
+        read_footage(tmp_path / "f")
+
+
+def test_write_animation_refuses_frames_it_would_spoil(tmp_path):
+    from vidsim.io.video import write_animation
+
+    with pytest.raises(ValueError, match="must be uint8, got float64"):
+        write_animation(tmp_path / "a.mp4", np.ones((3, 8, 8, 3)), 30.0)
+    with pytest.raises(ValueError, match=r"\(T, H, W, 3\)"):
+        write_animation(tmp_path / "a.gif", np.zeros((8, 8, 3), np.uint8), 30.0)
+    assert not list(tmp_path.iterdir())

@@ -49,6 +49,10 @@ class FeatureSettings:
             raise FeatureError(f"features.period_px must be >= 3 camera pixels, got {self.period_px}")
         if not self.tau > 0:
             raise FeatureError(f"features.tau must be > 0 rad/px, got {self.tau}")
+        if not (np.isfinite(self.min_strength) and self.min_strength >= 0):
+            raise FeatureError(f"features.min_strength must be a fraction >= 0, got {self.min_strength}")
+        if not (np.isfinite(self.min_orientedness) and 0 <= self.min_orientedness <= 1):
+            raise FeatureError(f"features.min_orientedness must be in [0, 1], got {self.min_orientedness}")
 
     def bank(self) -> SteerableBank:
         return SteerableBank.for_period(self.period_px)

@@ -188,16 +188,25 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def read_times(path: str | os.PathLike, n: int) -> np.ndarray:
-    """Read ``times.csv`` (header line, one time per frame, seconds) and check monotonicity."""
+def read_times(path: str | os.PathLike, n: int, prefix: bool = False) -> np.ndarray:
+    """Read ``times.csv`` (header line, one time per frame, seconds) and check monotonicity.
+
+    ``prefix``: the frames are the first ``n`` of a longer clip (a ``max_frames`` read): the file
+    must hold at least ``n`` times, and the first ``n`` are returned."""
     path = Path(path)
     if not path.is_file():
         raise FootageError(f"{path}: file is missing")
-    lines = [ln.strip() for ln in path.read_text().splitlines() if ln.strip()]
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise FootageError(f"{path}: not a text file (expected a header line and one time per line)") from None
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     try:
         t = np.array([float(x.split(",")[0]) for x in lines[1:]])
     except ValueError as e:
         raise FootageError(f"{path}: non-numeric time value ({e})") from e
+    if prefix and t.size >= n:
+        t = t[:n]
     return check_times(t, n, str(path))
 
 
@@ -298,7 +307,7 @@ def read_footage(folder: str | os.PathLike, required_meta: tuple[str, ...] = (),
     elif videos:
         frames, times = read_video(videos[0], max_frames=max_frames)
         if (folder / "times.csv").is_file():
-            times = read_times(folder / "times.csv", frames.shape[0])
+            times = read_times(folder / "times.csv", frames.shape[0], prefix=max_frames is not None)
     else:
         raise FootageError(f"{folder}: no '{FRAME_DIR}/' folder and no video file ({', '.join(VIDEO_EXTS)})")
     cams = read_calibration(folder / "calibration.yaml", frame_size=(frames.shape[2], frames.shape[1]))

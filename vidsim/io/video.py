@@ -10,11 +10,20 @@ __all__ = ["write_animation"]
 
 
 def write_animation(path: str | Path, frames: np.ndarray, fps: float) -> None:
-    """Write (T, H, W, 3) uint8 RGB frames as an H.264 mp4 (PyAV) or a GIF (Pillow), atomically."""
+    """Write (T, H, W, 3) uint8 RGB frames as an H.264 mp4 (PyAV) or a GIF (Pillow), atomically.
+
+    An mp4 has even width and height (yuv420p): an odd last row or column is dropped."""
     from vidsim.io.atomic import atomic_path
 
     path = Path(path)
-    frames = np.asarray(frames, np.uint8)
+    a = np.asarray(frames)
+    if a.ndim != 4 or a.shape[-1] != 3 or a.shape[0] < 1:
+        raise ValueError(f"{path}: frames must be (T, H, W, 3) RGB with T >= 1, got shape {a.shape}")
+    if a.dtype != np.uint8:  # e.g. floats in [0, 1] would silently become a black video
+        raise ValueError(f"{path}: frames must be uint8, got {a.dtype}")
+    if not (np.isfinite(fps) and fps > 0):
+        raise ValueError(f"{path}: fps must be a finite rate > 0, got {fps!r}")
+    frames = a
     if path.suffix == ".gif":
         from PIL import Image
 

@@ -120,7 +120,14 @@ def undistort_pixels(uv: np.ndarray, cam: PinholeCamera, P: np.ndarray | None = 
     """
     pts = np.ascontiguousarray(np.asarray(uv, np.float64).reshape(-1, 1, 2))
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    xn = cv2.undistortPoints(pts, cam.K, cam.dist, R=None, P=None, criteria=crit).reshape(-1, 2)
+    # OpenCV's undistortPoints ignores the skew K[0,1]; remove it first (u = fx xd + s yd + cx,
+    # v = fy yd + cy, so u - s (v - cy) / fy is the pixel of a camera without skew)
+    K0 = cam.K.copy()
+    q = pts.copy()
+    if K0[0, 1] != 0.0:
+        q[:, 0, 0] -= K0[0, 1] * (q[:, 0, 1] - K0[1, 2]) / K0[1, 1]
+        K0[0, 1] = 0.0
+    xn = cv2.undistortPoints(q, K0, cam.dist, R=None, P=None, criteria=crit).reshape(-1, 2)
     xd, yd = distort_normalized(xn[:, 0], xn[:, 1], cam.dist)
     back = np.stack([cam.K[0, 0] * xd + cam.K[0, 1] * yd + cam.K[0, 2], cam.K[1, 1] * yd + cam.K[1, 2]], 1)
     err = np.abs(back - pts.reshape(-1, 2)).max() if len(back) else 0.0

@@ -217,7 +217,7 @@ def _orientation_kernel(c1, c2, c3, strength, region, s_min, o_min, theta, orien
             s = strength[i, j]
             o = s / max(c1[i, j], 1e-12)
             orient[i, j] = o
-            ok = region[i, j] and s >= s_min and o >= o_min
+            ok = region[i, j] and s > 0.0 and s >= s_min and o >= o_min  # s > 0: the gradient divides by it
             valid[i, j] = ok
             theta[i, j] = 0.5 * np.arctan2(-c3[i, j], -c2[i, j]) if ok else np.nan
     for i in range(1, n0 - 1):
@@ -303,6 +303,10 @@ def angle_map(
         blur_sigma = 0.5 * bank.tuned_period_px
     if not (np.isfinite(blur_sigma) and blur_sigma >= 0):
         raise AngleMapError(f"blur_sigma must be >= 0 pixels, got {blur_sigma!r}")
+    if not (np.isfinite(min_strength) and min_strength >= 0):
+        raise AngleMapError(f"min_strength must be a fraction >= 0, got {min_strength!r}")
+    if not (np.isfinite(min_orientedness) and 0 <= min_orientedness <= 1):
+        raise AngleMapError(f"min_orientedness must be in [0, 1], got {min_orientedness!r}")
     img = _as_gray(image)
     if region is not None:
         region = np.asarray(region, dtype=np.bool_)

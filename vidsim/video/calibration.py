@@ -64,6 +64,16 @@ _FIND_FLAGS = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.
 # --------------------------------------------------------------------------------------------
 # Target description
 # --------------------------------------------------------------------------------------------
+
+def _five_coefficient_model(flags: int, where: str) -> None:
+    """The project's cameras carry OpenCV's five-coefficient lens (k1, k2, p1, p2, k3); flags that
+    ask OpenCV for a longer model would return coefficients this code would have to drop."""
+    longer = [n for n in ("CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL", "CALIB_TILTED_MODEL")
+              if flags & getattr(cv2, n, 0)]
+    if longer:
+        raise CalibrationError(f"{where}: flags {longer} ask for more than five distortion coefficients; only "
+                               "k1, k2, p1, p2, k3 are supported")
+
 def _box_step(d: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Unit step box-filtered over width ``w``: a linear ramp in the signed distance ``d``."""
     return np.clip(0.5 + d / w, 0.0, 1.0)
@@ -382,7 +392,11 @@ def _as_gray_u8(img: np.ndarray, name: str) -> np.ndarray:
     a = a.astype(float)
     if not np.all(np.isfinite(a)):
         raise CalibrationError(f"image '{name}': contains NaN or inf")
-    scale = 255.0 if a.max(initial=0.0) <= 1.0 else 1.0
+    top = a.max(initial=0.0)
+    if top > 255.0:  # a 12- or 16-bit image: clipping it to 255 would leave a white frame and "no chessboard"
+        raise CalibrationError(f"image '{name}': pixel values up to {top:g}; expected uint8, or numbers in "
+                               "[0, 1] or [0, 255] (scale a 12/16-bit image to 8 bits first)")
+    scale = 255.0 if top <= 1.0 else 1.0
     return np.clip(np.rint(a * scale), 0, 255).astype(np.uint8)
 
 
@@ -537,6 +551,7 @@ def calibrate_chessboard(
         K0[0, 0] = float(aspect_ratio)
     obj32 = [obj.astype(np.float32)] * len(pts)
     img32 = [p.astype(np.float32).reshape(-1, 1, 2) for p in pts]
+    _five_coefficient_model(flags, "calibrate_chessboard")
     rms, K, dist, rvecs, tvecs = cv2.calibrateCamera(obj32, img32, size, K0, np.zeros(5), flags=flags)
     dist = np.asarray(dist, float).ravel()[:5]
     per_view = _per_view_rms(obj, np.array(pts), rvecs, tvecs, K, dist)
@@ -811,6 +826,7 @@ def calibrate_projector(
     size_p = (pattern.width, pattern.height)
     obj32 = [np.column_stack([o[:, :2], np.zeros(len(o))]).astype(np.float32) for o in obj_b]
     img32 = [p.astype(np.float32).reshape(-1, 1, 2) for p in img_p]
+    _five_coefficient_model(flags, "projector calibration")
     _, Kp, dp, rv_bp, tv_bp = cv2.calibrateCamera(obj32, img32, size_p, None, None, flags=flags)
     dp = np.asarray(dp, float).ravel()[:5]
     dp = np.pad(dp, (0, 5 - dp.size))

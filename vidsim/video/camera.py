@@ -41,10 +41,7 @@ class PinholeCamera:
         self.K = np.asarray(self.K, dtype=float).reshape(3, 3)
         self.R = np.asarray(self.R, dtype=float).reshape(3, 3)
         self.t = np.asarray(self.t, dtype=float).reshape(3)
-        d = np.zeros(5)
-        dd = np.asarray(self.dist, dtype=float).ravel()
-        d[: min(5, dd.size)] = dd[:5]
-        self.dist = d
+        self.dist = _dist5(self.dist, "camera")
         self.width, self.height = int(self.width), int(self.height)
         self.validate()
 
@@ -137,19 +134,38 @@ class PinholeCamera:
             raise CameraError(f"{where}: field 'K' must be 3x3, got shape {K.shape}")
         cam = cls.__new__(cls)
         cam.K = K
-        cam.R = np.asarray(d.get("R", np.eye(3)), dtype=float)
-        cam.t = np.asarray(d.get("t", np.zeros(3)), dtype=float)
+        for name, default in (("R", np.eye(3)), ("t", np.zeros(3))):
+            try:
+                setattr(cam, name, np.asarray(d.get(name, default), dtype=float))
+            except (TypeError, ValueError):
+                raise CameraError(f"{where}: field '{name}' is not numeric (got {d.get(name)!r})") from None
+        for name in ("width", "height"):
+            v = d[name]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or float(v) != int(v):
+                raise CameraError(f"{where}: field '{name}' must be a whole number of pixels, got {v!r}")
         cam.width, cam.height = int(d["width"]), int(d["height"])
-        dist = np.zeros(5)
-        dd = np.asarray(d.get("dist", np.zeros(5)), dtype=float).ravel()
-        dist[: min(5, dd.size)] = dd[:5]
-        cam.dist = dist
+        cam.dist = _dist5(d.get("dist", np.zeros(5)), where)
         if cam.R.shape != (3, 3):
             raise CameraError(f"{where}: field 'R' must be 3x3, got shape {cam.R.shape}")
         if cam.t.shape != (3,):
             raise CameraError(f"{where}: field 't' must have 3 entries, got shape {cam.t.shape}")
         cam.validate(where)
         return cam
+
+
+def _dist5(dist, where: str) -> np.ndarray:
+    """The five OpenCV coefficients ``k1, k2, p1, p2, k3`` (fewer are padded with zeros); a longer
+    vector (the rational or thin-prism models) is refused rather than cut to a different lens."""
+    try:
+        dd = np.asarray(dist, dtype=float).ravel()
+    except (TypeError, ValueError):
+        raise CameraError(f"{where}: field 'dist' is not numeric (got {dist!r})") from None
+    if dd.size > 5 and np.any(dd[5:] != 0):
+        raise CameraError(f"{where}: field 'dist' has {dd.size} coefficients with non-zero ones beyond k3; only "
+                          "OpenCV's five-coefficient model (k1, k2, p1, p2, k3) is supported")
+    d = np.zeros(5)
+    d[: min(5, dd.size)] = dd[:5]
+    return d
 
 
 def distort_normalized(x: np.ndarray, y: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -5,8 +5,10 @@ be empty) and a robust noise scale, 1.4826 x the median absolute deviation, floo
 ``min_sigma``. A moving object covers any one pixel in only a minority of frames, so both
 statistics ignore it (this replaces the seed's autoregressive filters with an equally local but
 outlier-proof model). A global gain per frame (the median ratio of frame to background) absorbs
-webcam auto-exposure. A pixel is foreground when, in some channel, its difference from the
-gain-corrected background exceeds both ``k_sigma`` noise scales and ``min_diff`` digital numbers.
+webcam auto-exposure. A pixel is foreground when its difference from the gain-corrected
+background exceeds ``k_sigma`` noise scales in some channel and ``min_diff`` digital numbers in
+some channel (the two largest over the channels are tested, so they may come from different
+channels).
 Pixels on the rim of a mask are mixtures of object and background (a real sensor integrates over
 the pixel): a rim pixel is kept only when its difference is at least half the object's contrast
 seen in the nearby core (``mixed_fraction``), so that the silhouette boundary lies where the

@@ -202,3 +202,16 @@ def test_fused_batch_equals_raster_plus_shade_per_frame(rng, dist):
         ref = shade_stripes(r.depth, cam, proj, face_normals(Vs[k], F), rasterize(Vs[k], F, proj.cam).depth, face=r.face)
         np.testing.assert_array_equal(depth[k], r.depth)
         np.testing.assert_allclose(irr[k], ref, atol=1e-6)
+
+
+def test_undistort_pixels_handles_skew():
+    """OpenCV's undistortPoints ignores the skew K[0, 1]; any skewed, distorted camera was refused as
+    'distortion cannot be inverted' before the skew was taken out first."""
+    from vidsim.render.projector import undistort_pixels
+
+    K = np.array([[500.0, 3.0, 320.0], [0.0, 480.0, 240.0], [0.0, 0.0, 1.0]])
+    cam = PinholeCamera(K, width=640, height=480, dist=np.array([-0.05, 0.01, 0.001, -0.002, 0.0]))
+    uv = np.array([[10.0, 20.0], [320.0, 240.0], [600.0, 400.0], [630.0, 15.0]])
+    xn = undistort_pixels(uv, cam)
+    back = cam.project(np.column_stack([xn, np.ones(len(xn))]))
+    np.testing.assert_allclose(back, uv, atol=1e-6)

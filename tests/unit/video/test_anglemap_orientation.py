@@ -157,6 +157,20 @@ def test_bad_inputs_raise_clear_errors():
         angle_map(np.zeros((20, 20)), region=np.ones((20, 21), bool))
     with pytest.raises(AngleMapError, match="alpha"):
         cloth_metric(z, z, z, z, z, alpha=-1.0)
+    with pytest.raises(AngleMapError, match="min_orientedness"):
+        angle_map(np.zeros((20, 20)), min_orientedness=1.5)
+    with pytest.raises(AngleMapError, match="min_strength"):
+        angle_map(np.zeros((20, 20)), min_strength=float("nan"))
+
+
+def test_zero_thresholds_leave_flat_pixels_invalid(rng):
+    """With both validity thresholds at 0 a flat (zero-strength) pixel is still invalid: the angle
+    gradient divides by the strength (numba raised ZeroDivisionError on a half-black stripe image)."""
+    img = stripes(0.3, 8.0, rng, noise=0.0)
+    img[:, : W // 2] = 0.0
+    am = angle_map(img, min_strength=0.0, min_orientedness=0.0, crop=False)
+    assert not am.valid[:, : W // 4].any() and am.valid[:, W // 2 + 10:].mean() > 0.9
+    assert np.all(np.isfinite(am.gradient))
 
 
 def test_fused_coefficients_equal_reference_formulas(rng):

@@ -65,6 +65,15 @@ def test_bad_arrays_and_fields_are_named():
         ChessboardTarget(board_extent=(0.0, 0.1, 0.0, 0.1))
     with pytest.raises(CalibrationError, match="does not fit"):
         ProjectorPattern(200, 150, (7, 4), 40)
+    # a 16-bit image was clipped to a white frame ("no chessboard found"); now its range is named
+    with pytest.raises(CalibrationError, match=r"image 'deep\.png': pixel values up to 4095"):
+        calibrate_chessboard([np.full((48, 64), 4095, np.uint16)], image_names=["deep.png"])
+
+
+def test_lens_models_beyond_five_coefficients_are_refused(views):
+    """OpenCV's rational model returns 14 coefficients; keeping 5 of them would be another lens."""
+    with pytest.raises(CalibrationError, match="CALIB_RATIONAL_MODEL"):
+        calibrate_chessboard(views, TARGET.pattern_size, TARGET.square_size, flags=cv2.CALIB_RATIONAL_MODEL)
 
 
 def test_projector_without_pattern_and_mismatched_lists(views):
