@@ -56,13 +56,15 @@ def run(cfg: DictConfig) -> None:
     t_nom = np.arange(len(times)) / float(b.nominal_fps)
     readings = {"container_timestamps": times, f"constant_{float(b.nominal_fps):g}_fps": t_nom}
     res = {}
-    idx = np.concatenate([f[np.isfinite(centres[f, 0])] for f in flights]) if flights else np.zeros(0, int)
-    dev = (times[idx] - times[idx[0]]) - (t_nom[idx] - t_nom[idx[0]]) if len(idx) else np.zeros(0)
+    idx = dev = None
     for name, tt in readings.items():
         try:
             d = diagnose_flights(tt, centres, areas, flights, size)
         except GapError as e:
             raise GapBallError(f"{video}: {e}") from e
+        if idx is None:  # the frames diagnosed (the same for both readings: same detections)
+            idx = np.asarray(d["time_error_frames"], int)
+            dev = (times[idx] - times[idx[0]]) - (t_nom[idx] - t_nom[idx[0]]) if len(idx) else np.zeros(0)
         dk = np.asarray(d["time_errors_s"])
         if len(dk) == len(dev) and len(dk) > 2:
             d["corr_time_errors_vs_timestamp_departure"] = float(np.corrcoef(dk, dev - dev.mean())[0, 1])
@@ -76,15 +78,15 @@ def run(cfg: DictConfig) -> None:
                     "the residual beyond an equal cross-track placebo and its fitted errors are white (>= 50 % of "
                     "their variance not a cubic drift). No noise floor: the clip has no repeated view of the ball.")}
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "ball_gap.json", doc)
-    _plot(idx, dev, res, out / "ball_gap.png")
+    _plot(idx, dev, res, out / "ball_gap.png")  # the main output (ball_gap.json) last
     with make_logger(out / "ball_gap.rrd", "vidsim.gap_ball", cfg.log.rerun) as lg:
         for name, d in res.items():
-            for k, e in zip(idx, d["time_errors_s"]):
+            for i, (k, e) in enumerate(zip(idx, d["time_errors_s"])):
                 lg.set_frame(int(k))
                 lg.scalar(f"metric/{name}/fitted_time_error_ms", 1e3 * float(e))
-                lg.scalar("metric/timestamp_departure_ms", 1e3 * float(dev[list(idx).index(k)] - dev.mean()))
+                lg.scalar("metric/timestamp_departure_ms", 1e3 * float(dev[i] - dev.mean()))
             lg.text(f"gap/{name}/verdict", d["verdict"])
+    write_json(out / "ball_gap.json", doc)
     prog.update(note="written")
     for name, d in res.items():
         print(f"gap_ball {name}: rms {d['rms_px']:.2f} px (along {d['along_track_rms_px']:.2f}, across "

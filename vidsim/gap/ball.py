@@ -132,7 +132,7 @@ def diagnose_flights(times: np.ndarray, centres: np.ndarray, areas: np.ndarray, 
         A = np.concatenate([J0, Jd], 1)
         sse += float(r @ r)
         per_flight.append({"frames": [int(fl[0]), int(fl[-1])], "n": n, "rms_px": float(np.sqrt((R ** 2).sum(1).mean())),
-                           "J0": J0, "Jd": Jd[:, 0], "r": r})
+                           "J0": J0, "Jd": Jd[:, 0], "r": r, "idx": fl})
     if not per_flight:
         raise GapError("no flight with >= 8 detections")
     # drag: leave one flight out (rate from the other flights, the held-out flight's own base refitted)
@@ -177,4 +177,7 @@ def diagnose_flights(times: np.ndarray, centres: np.ndarray, areas: np.ndarray, 
         "named": named,
         "verdict": ("explained by " + ", ".join(named)) if named else "none of the candidates explains the residual",
         "time_errors_s": dk.tolist(),
+        # the frame of each time error: the frames of the flights diagnosed (a flight with fewer than
+        # 8 detections is skipped, so these can be fewer than the flights' frames)
+        "time_error_frames": [int(k) for f in per_flight for k in f["idx"]],
     }

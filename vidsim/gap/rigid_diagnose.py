@@ -49,7 +49,7 @@ from scipy.optimize import least_squares
 
 from vidsim.gap.rigid_model import RIGID_EFFECTS, GapError, RigidGapModel
 from vidsim.rigid.body import BoxBody
-from vidsim.rigid.dynamics import quat_exp, quat_mul
+from vidsim.rigid.dynamics import G_EARTH, quat_exp, quat_mul
 from vidsim.rigid.fit import visible_frames
 from vidsim.rigid.silhouette import render_coverage
 from vidsim.video.camera import PinholeCamera
@@ -633,11 +633,17 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     p0 = np.r_[fit["position"], [0, 0, 0], fit["velocity"], fit["omega_world"], fit["tilt"], fit["roll"]].astype(float)
     qb = np.asarray(fit["quaternion"], float)
     t0 = float(fit["t0"])
-    base = RigidGapModel(body, cam, ft, t0, qb, (), cfg.scale, cfg.ramp)
+    # the fit's own gravity magnitude (fit.yaml: gravity_magnitude, the footage's meta): a base model
+    # with another one would start with a mismatch that gravity_scale or time_rate could be named for
+    g_fit = float(fit.get("gravity_magnitude", G_EARTH))
+    if not (np.isfinite(g_fit) and g_fit > 0):
+        raise GapError(f"fit: gravity_magnitude {g_fit!r} must be a finite magnitude > 0 m/s^2")
+    hmax = 1.0 / 120.0  # the gap model's own step bound (RigidGapModel's default), finer than the fit's
+    base = RigidGapModel(body, cam, ft, t0, qb, (), cfg.scale, cfg.ramp, hmax, g_fit)
     obs, roi = residual_region(base, masks[frames], p0, cfg.roi_px)
 
     def problem(effects: tuple[str, ...], fr: np.ndarray) -> Problem:
-        return Problem(RigidGapModel(body, cam, ft, t0, qb, effects, cfg.scale, cfg.ramp), obs, roi, fr)
+        return Problem(RigidGapModel(body, cam, ft, t0, qb, effects, cfg.scale, cfg.ramp, hmax, g_fit), obs, roi, fr)
 
     n_renders = 0
     # 2. base refit on training frames

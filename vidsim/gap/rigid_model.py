@@ -16,9 +16,10 @@ Dynamics (centre-of-mass acceleration added to ``g``; rotation stays torque free
     magnus          s   (-)        a += s (W x V)   (W: spin in world axes, rad/s; s >= 0: the lift
                                    of a spinning body is toward W x V)
     angular_drag    k   (1/s)      w' += -k w       (spin decays)
-    drag_torque     u   (3, -)     torque of quadratic drag acting at a centre of pressure r_p
-                                   (body axes) off the centre of mass: u = c2 r_p,
-                                   tau = -m |V| (u x V_body)
+    drag_torque     u   (3, -)     torque of a quadratic drag force m c |V| V (c in 1/m: drag per
+                                   unit mass, not the kg/m^3 c2 above) acting at a centre of
+                                   pressure r_p (body axes) off the centre of mass: u = c r_p
+                                   (dimensionless), tau = -m |V| (u x V_body)
     com_offset      d   (3, m)     the true centre of mass sits at body-frame ``d``
     gravity_scale   e   (-)        |g| -> 9.81 (1 + e)
 
@@ -326,7 +327,9 @@ class RigidGapModel:
                                     float(self.get(theta, "magnus")[0]),
                                     float(self.get(theta, "angular_drag")[0]),
                                     np.ascontiguousarray(self.get(theta, "drag_torque")), self.body.mass,
-                                    self.box_centers, self.face_areas)
+                                    # the boxes' lever arms from the true centre of mass, which is integrated
+                                    self.box_centers - d[None, :] if np.any(d) else self.box_centers,
+                                    self.face_areas)
         if not ok:
             return np.zeros(shp + (3,)), np.zeros(shp + (4,)), False
         X = states[:, 0:3].copy()

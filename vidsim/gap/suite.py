@@ -15,7 +15,9 @@ reality of this module: quadratic drag throughout and a wind that starts blowing
 segments (needed for blur and rolling shutter, which the fast rasterised path does not show).
 
 Only :func:`score_case` reads the truth; :func:`run_case` hands the estimator (fit, diagnosis)
-nothing but masks, times, camera and the body.
+nothing but masks, times, camera, the body and the fit's rough initial guess (the documented
+guess protocol of docs/rigid.md: the truth moved by 30 degrees, 30 %, 20 %, 10 cm and 10 degrees of gravity, a
+stand-in for a user's guess; the diagnosis never sees it).
 """
 
 from __future__ import annotations

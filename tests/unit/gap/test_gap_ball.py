@@ -37,3 +37,16 @@ def test_clean_flights_name_nothing(rng):
     t, c, a, fl = _flights(rng, 0.0)
     d = diagnose_flights(t, c, a, fl, (640, 480))
     assert d["named"] == [], d["jitter"]
+
+
+def test_time_errors_carry_their_frames_when_a_short_flight_is_skipped(rng):
+    """A flight with fewer than 8 detections is skipped: the time errors then belong to the other
+    flights' frames, which the result names (gap_ball paired them with every flight's frames and
+    its plot crashed on the length mismatch)."""
+    t, c, a, fl = _flights(rng, 0.0)
+    short = fl[1][:7]
+    fl = [fl[0], short, fl[2]]
+    d = diagnose_flights(t, c, a, fl, (640, 480))
+    assert len(d["time_errors_s"]) == len(d["time_error_frames"]) == len(fl[0]) + len(fl[2])
+    assert d["time_error_frames"] == [int(k) for k in np.r_[fl[0], fl[2]]]
+    assert not set(d["time_error_frames"]) & set(short.tolist())

@@ -133,3 +133,31 @@ def test_rolling_shutter_staircase_is_close_to_a_per_row_read_out(monkeypatch):
     d_effect = np.abs(no_rs - fine).sum()  # 8794: the 20 ms read-out itself
     assert 0 < d_default < 0.3 * d_six
     assert d_default < 0.05 * d_effect
+
+
+def test_quadratic_drag_with_a_com_offset_acts_about_the_true_centre_of_mass(rng):
+    """With com_offset d the model integrates the true centre of mass, so the boxes' lever arms (their
+    velocities w x r and the drag torque r x F) are measured from it: r_b - d. Equivalent body: the
+    same boxes described from the true centre (centres c - d, no offset), started at the true centre's
+    position and velocity. Both must move alike (they did not while the arms were r_b: 12 mm off on
+    0.1 m arms, about 10 % of the drag torque)."""
+    body, _ = t_object()
+    d = np.array([0.004, -0.003, 0.012])
+    shifted = BoxBody(body.centers - d, body.half_sizes, body.mass, body.inertia, body.symmetries)
+    a = _model(body, ("quadratic_drag", "com_offset"))
+    b = _model(shifted, ("quadratic_drag",))
+    p = np.zeros(14)
+    p[0:3] = [0.05, -0.1, 1.2]
+    p[6:9] = [1.5, -2.5, 0.4]
+    p[9:12] = [8.0, -5.0, 12.0]  # spin (world axes): the arms matter
+    theta_a = np.r_[p, 1.2, d]
+    Xa, Qa, ok_a = a.poses(theta_a, a.times)
+    R0 = quat_to_rot(a.q_base)
+    pb = p.copy()
+    pb[0:3] += R0 @ d
+    pb[6:9] += np.cross(p[9:12], R0 @ d)
+    Xb, Qb, ok_b = b.poses(np.r_[pb, 1.2], b.times)
+    assert ok_a and ok_b
+    np.testing.assert_allclose(Qa, Qb, atol=1e-9)
+    true_a = Xa + np.einsum("tij,j->ti", np.array([quat_to_rot(q) for q in Qa]), d)
+    np.testing.assert_allclose(true_a, Xb, atol=1e-9)

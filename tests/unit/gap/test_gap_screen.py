@@ -190,3 +190,33 @@ def test_cloth_score_reads_jointly_named_strengths_from_the_pair_refit():
     assert sc["recovery"]["grip_slip"]["estimate"] == [0.021, 0.019]
     assert sc["recovery"]["lens_k1"]["estimate"] == [0.28]
     assert sc["closure"]["grip_slip"] == 0.3 and sc["closure"]["lens_k1"] == 0.57
+
+
+def test_the_diagnosis_models_the_fits_own_gravity(monkeypatch):
+    """A fit made with the footage's gravity magnitude (fit.yaml: gravity_magnitude, e.g. 3.71 on
+    Mars) is diagnosed with that magnitude (was always 9.81: a built-in mismatch that gravity_scale
+    or time_rate could have been named for)."""
+    from vidsim.gap import rigid_diagnose
+    from vidsim.rigid.body import t_object
+    from vidsim.video.camera import PinholeCamera, intrinsics
+
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fake_model(*args, **kw):
+        seen["gravity"] = args[9] if len(args) > 9 else kw.get("gravity")
+        raise Stop
+
+    monkeypatch.setattr(rigid_diagnose, "RigidGapModel", fake_model)
+    cam = PinholeCamera(intrinsics(400.0, None, 79.5, 59.5), np.eye(3), np.zeros(3), 160, 120)
+    masks = np.zeros((12, 120, 160), bool)
+    masks[:, 40:60, 50:80] = True
+    fit = {"position": [0, 0, 1.0], "quaternion": [1, 0, 0, 0], "velocity": [0, 0, 0], "omega_world": [0, 0, 0],
+           "tilt": 0.0, "roll": 0.0, "t0": 0.0, "gravity_magnitude": 3.71}
+    with pytest.raises(Stop):
+        rigid_diagnose.diagnose_rigid(masks, np.arange(12) / 30.0, cam, t_object()[0], fit)
+    assert seen["gravity"] == 3.71
+    with pytest.raises(rigid_diagnose.GapError, match="gravity_magnitude"):
+        rigid_diagnose.diagnose_rigid(masks, np.arange(12) / 30.0, cam, t_object()[0], {**fit, "gravity_magnitude": 0})
