@@ -17,3 +17,42 @@ Sub-packages (one concept each):
 """
 
 __version__ = "0.1.0"
+
+
+def _numba_cache_dir() -> None:
+    """One numba cache folder per version of the package's source.
+
+    numba's on-disk cache checks only the file that defines each jitted function: a kernel that
+    calls a jitted function of another file keeps the old callee's machine code after that file
+    changed (seen 5 Dec 2026: a fix in ``cloth/collision.py`` did not reach the cached RK45 loop
+    of ``cloth/integrate.py``). So the cache lives in ``<repo>/.numba_cache/<hash of every .py
+    file of the package>``, unless ``NUMBA_CACHE_DIR`` is set; folders of other versions unused for
+    two days are removed. Must run before numba is imported (it is: this is the package's first
+    module)."""
+    import hashlib
+    import os
+    import shutil
+    import time
+    from pathlib import Path
+
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    root = Path(__file__).resolve().parent
+    h = hashlib.sha1()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode())
+        h.update(f.read_bytes())
+    base = root.parent / ".numba_cache"
+    here = base / h.hexdigest()[:16]
+    os.environ["NUMBA_CACHE_DIR"] = str(here)
+    try:
+        here.mkdir(parents=True, exist_ok=True)
+        os.utime(here)
+        for old in base.iterdir():
+            if old != here and old.is_dir() and time.time() - old.stat().st_mtime > 2 * 86400:
+                shutil.rmtree(old, ignore_errors=True)
+    except OSError:  # a read-only checkout: numba falls back to its own choice of folder
+        pass
+
+
+_numba_cache_dir()

@@ -258,6 +258,21 @@ def closest_point_triangle(
     return 1.0 - v - w, v, w
 
 
+#: a triangle or edge whose search box spans more grid cells than this along an axis belongs to a
+#: state no cloth reaches (a cell is at least the mesh's mean edge, so this is a triangle stretched
+#: about 16-fold; an RK45 trial stage past the stable step reaches kilometres): its contacts are
+#: skipped, where the cell loop would otherwise run for hours (numba cannot be interrupted)
+MAX_CELL_SPAN = 16
+
+
+@njit(cache=True)
+def _too_wide(lo0, lo1, lo2, hi0, hi1, hi2, inv) -> bool:
+    for lo, hi in ((lo0, hi0), (lo1, hi1), (lo2, hi2)):
+        if not (math.isfinite(lo) and math.isfinite(hi)) or (hi - lo) * inv > MAX_CELL_SPAN:
+            return True
+    return False
+
+
 @njit(cache=True)
 def _hash(cx: int, cy: int, cz: int, size: int) -> int:
     h = (cx * 73856093) ^ (cy * 19349663) ^ (cz * 83492791)
@@ -314,6 +329,8 @@ def build_self_pairs(x: np.ndarray, tris: np.ndarray, radius: float, cell: float
         hi0 = max(x[i, 0], x[j, 0], x[k, 0]) + radius
         hi1 = max(x[i, 1], x[j, 1], x[k, 1]) + radius
         hi2 = max(x[i, 2], x[j, 2], x[k, 2]) + radius
+        if _too_wide(lo0, lo1, lo2, hi0, hi1, hi2, inv):
+            continue  # a blown-up trial state (e.g. an RK45 stage past the stable step): no contacts
         for cx in range(int(math.floor(lo0 * inv)), int(math.floor(hi0 * inv)) + 1):
             for cy in range(int(math.floor(lo1 * inv)), int(math.floor(hi1 * inv)) + 1):
                 for cz in range(int(math.floor(lo2 * inv)), int(math.floor(hi2 * inv)) + 1):
@@ -361,7 +378,13 @@ def self_collision_forces(
     Energy per pair: w k A_p (h - d)^2 / 2 for d < h, d the vertex-triangle distance and
     w = 1 when the closest point is inside the triangle, 1/(triangles sharing the edge)
     when it is on an edge, 1/(triangles sharing the vertex) when it is a corner, so that
-    a vertex facing a shared feature is not pushed several times over.
+    a vertex facing a shared feature is not pushed several times over *exactly on* that
+    feature. Near it, not on it, the pushes add up unevenly: a vertex 2 mm above a flat
+    sheet (h = 3 mm) has contact energy 1.00 (relative) over a face's interior but 1.48-1.50
+    close to a shared edge, where the neighbour triangle adds its edge-region term with
+    weight 1/2 (measured in review, 5 Dec 2026): a slightly non-uniform contact pressure with
+    small sideways forces away from edges. Known, not corrected (it would change every
+    self-contact run).
 
     Args:
         x: (N, 3) [m]. tris: (M, 3). vert_area: (N,) [m^2].
@@ -573,6 +596,8 @@ def build_edge_pairs(x: np.ndarray, edges: np.ndarray, radius: float, cell: floa
         hi0 = max(x[a0, 0], x[a1, 0]) + grow
         hi1 = max(x[a0, 1], x[a1, 1]) + grow
         hi2 = max(x[a0, 2], x[a1, 2]) + grow
+        if _too_wide(lo0, lo1, lo2, hi0, hi1, hi2, inv):
+            continue  # a blown-up trial state: no contacts
         for cx in range(int(math.floor(lo0 * inv)), int(math.floor(hi0 * inv)) + 1):
             for cy in range(int(math.floor(lo1 * inv)), int(math.floor(hi1 * inv)) + 1):
                 for cz in range(int(math.floor(lo2 * inv)), int(math.floor(hi2 * inv)) + 1):

@@ -12,9 +12,10 @@ Conditions (seed eq. 8-10, Baraff & Witkin 1998), with energies linear in rest a
 where w_u, w_v are the deformation gradient columns (d x / d u, d x / d v) and theta is
 the dihedral angle across an interior edge. Damping per condition is
 d = -k_d (dC/dx) dC/dt. Drag per triangle (seed section 4.2):
-f = -a (k_N |v_N|^2 / (1 + k_f |v_N|^2) v_N/|v_N| + k_T v_T), with v the face's mean
-velocity relative to the air (``wind``), split into normal and tangential parts, shared
-equally by the three corners.
+f = -a' (k_N |v_N|^2 / (1 + k_f |v_N|^2) v_N/|v_N| + k_T v_T), with a' the triangle's
+*current* (deformed) area (not the rest area a of the conditions), v the face's mean velocity
+relative to the air (``wind``), split into normal and tangential parts, shared equally by the
+three corners.
 """
 
 from __future__ import annotations
@@ -611,8 +612,9 @@ def bend_forces_quadratic(
     Per interior edge, w = sum_j K_j x_j over its four vertices (x0, x1, x2, x3) with the
     rest cotangent weights K scaled by 1/sqrt(A1 + A2) (``ClothMesh.bend_quad``), and
     E = k_b/2 |w|^2. For a flat rest shape and small dihedral angles theta this equals the
-    dihedral energy k_b/2 |e|^2/(A1+A2) theta^2 of :func:`bend_forces` (|w| = |e| theta),
-    so ``bend`` keeps its meaning (D [N m]); at large angles |w| = 2|e| sin(theta/2) for a
+    dihedral energy k_b/2 |e|^2/(A1+A2) theta^2 of :func:`bend_forces` (|w| = |e| theta /
+    sqrt(A1 + A2)), so ``bend`` keeps its meaning (D [N m]); at large angles
+    |w| = 2|e| sin(theta/2) / sqrt(A1 + A2) for a
     hinge fold (softer: 0.81x the energy at 90 degrees). The Hessian is constant, so the
     elastic forces are linear in x: no sqrt, division or atan.
 

@@ -14,6 +14,7 @@ name               unit        meaning
 bend               N m         bending rigidity D: energy per area D/2 * curvature^2
 stretch            N/m         membrane stretch stiffness: energy per area k/2 * strain^2,
                                applied to the warp (u) and weft (v) directions alike
+                               (their geometric mean with ``stretch_anisotropy``, below)
 shear              N/m         in-plane shear stiffness: energy per area k/2 * (w_u . w_v)^2
 bend_damping       N m s       Rayleigh damping on the dihedral-angle rate (per area)
 stretch_damping    N s/m       Rayleigh damping on the strain rate
@@ -21,6 +22,7 @@ shear_damping      N s/m       Rayleigh damping on the shear rate
 drag_linear (kT)   N s/m^3     tangential (Stokes-like) drag per area: a*kT*vT
 drag_quad (kN)     kg/m^3      normal drag per area: a*kN*|vN|^2/(1+kf|vN|^2)
 drag_degrade (kf)  s^2/m^2     drag degradation; normal drag saturates at a*kN/kf
+                               (a: the triangle's current, deformed area)
 =================  ==========  =============================================================
 
 Not estimated by the study (known or 0): ``stretch_anisotropy`` (-), the natural log of the

@@ -688,11 +688,20 @@ def simulate(
         mode = damping
         if dt is not None and not (dt > 0 and math.isfinite(dt)):
             raise ClothInputError(f"dt must be a positive finite step [s], got {dt!r}")
-        if dt is None or damping == "auto":
+        if dt is None or damping == "auto" or settle_bath > 0:
             h_auto, info = stable_step(mesh, params, x, driven=driver.indices, self_collision=self_collision,
                                        colliders=colliders, safety=safety, bending=bending, damping=damping)
             stats.update(info)
-            mode = info["damping"]
+            mode = info["damping"] if (dt is None or damping == "auto") else damping
+            if settle_bath > 0:
+                # the bath is one more damping rate: velocity Verlet needs omega^2 h^2 + 2 (c + bath) h <= 4
+                h_bath = _verlet_limit(info["omega_max"] ** 2, info["c_max"] + settle_bath)
+                stats["h_stable_with_bath"] = h_bath
+                if dt is None:
+                    h_auto = min(h_auto, safety * h_bath)
+                elif float(dt) > h_bath:
+                    raise ClothInputError(f"settle_bath {settle_bath} 1/s is too strong for the fixed step dt = {dt:.3g} s "
+                                          f"(velocity Verlet with the bath is stable up to {h_bath:.3g} s)")
         dt_used = h_auto if dt is None else float(dt)
         stats["damping"] = mode
         r = _multirate(multirate, mesh, params, x, driver, dt_used, bending, stats, mode)

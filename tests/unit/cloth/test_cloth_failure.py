@@ -67,3 +67,27 @@ def test_soft_fabric_outgrowing_the_automatic_step_is_recovered():
     # the motion is chaotic (RK45 at two tolerances parts by cm within 1 s): the median vertex stays
     # within 4 mm (measured 2.8; a fixed 0.2 ms step 1.3) and no vertex strays by more than 3 cm
     assert np.median(d, axis=1).max() < 0.004 and d.max() < 0.03
+
+
+def test_rk45_with_self_collision_reports_a_blow_up_instead_of_hanging():
+    """RK45 evaluates trial stages before any check; past the stable step they reach kilometres, and the
+    self-contact grid search then looped over every cell of each triangle's box (a run at a stiff,
+    light, strongly damped corner did not return in 40 s; review, 5 Dec 2026). Boxes wider than
+    ``MAX_CELL_SPAN`` cells are now skipped, so the step is rejected or the run fails, quickly."""
+    import subprocess
+    import sys
+    import textwrap
+
+    code = textwrap.dedent("""
+        import numpy as np
+        from vidsim.cloth import ClothParams, simulate, swatch
+        mesh = swatch(40, 40, 0.3, 0.3)
+        p = ClothParams(stretch=1500.0, shear=400.0, bend=5e-5, stretch_damping=0.05, shear_damping=0.1,
+                        bend_damping=1e-6, density=0.05)
+        v0 = np.random.default_rng(0).normal(0.0, 0.5, (len(mesh.rest_positions), 3))
+        r = simulate(mesh, p, None, [0.0, 0.01], integrator="rk45", self_collision=True, v0=v0, max_steps=3)
+        print("ok" if r.ok else "failed: " + r.failure)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.startswith(("ok", "failed")), out.stdout

@@ -72,3 +72,25 @@ def test_mujoco_reality_bath_reaches_the_same_rest_state():
     d_free = np.abs(x0(0.7, 0.0) - x0(1.4, 0.0)).max()
     d_bath = np.abs(x0(0.7, 20.0) - x0(1.4, 20.0)).max()
     assert d_bath < 1e-8 and d_bath < 0.01 * d_free
+
+
+def test_a_strong_bath_shortens_the_automatic_step_to_its_stability_limit():
+    """The bath is one more damping rate: velocity Verlet needs omega^2 h^2 + 2 (c + bath) h <= 4.
+    A bath at 0.45 / h passes the old guard (bath x dt <= 0.5) but is unstable at the step estimated
+    without it (a stiff, undamped swatch needed a roll-back and halving; review, 5 Dec 2026)."""
+    from vidsim.cloth import ClothParams, stable_step
+
+    p = ClothParams(stretch=3000.0, shear=500.0, bend=4e-5, stretch_damping=0.0, shear_damping=0.0,
+                    bend_damping=0.0)
+    cp = corner_paths(swatch_motion("exp1"), FRAMES)
+    mesh = swatch_model_mesh(cp[0], 12, 0.3)
+    drv, t0 = swatch_driver(mesh, FRAMES, cp, 0.5)
+    h, info = stable_step(mesh, p, mesh.rest_positions, driven=drv.indices)
+    bath = 0.45 / h
+    r = simulate(mesh, p, drv, FRAMES, integrator="fast", t0=t0, settle_bath=bath)
+    assert r.ok, r.failure
+    h_bath = r.stats["h_stable_with_bath"]
+    assert h_bath < info["h_stable"]  # the bath lowers the limit
+    assert r.stats["dt_halvings"] == 0 and r.dt <= 0.9 * h_bath * (1 + 1e-12)
+    with pytest.raises(ClothInputError, match="too strong for the fixed step"):
+        simulate(mesh, p, drv, FRAMES, integrator="fast", t0=t0, settle_bath=bath, dt=1.01 * h_bath)
