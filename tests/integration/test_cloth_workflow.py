@@ -13,16 +13,17 @@ from __future__ import annotations
 import os
 import re
 import subprocess
+import sys
 from pathlib import Path
 
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
-SNAKEMAKE = str(ROOT / ".venv" / "bin" / "snakemake")
+SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")  # the test environment's own (venv or conda)
 
 
 def _smk(cfg: Path, *args: str) -> str:
-    env = {**os.environ, "PATH": f"{ROOT / '.venv' / 'bin'}:{os.environ.get('PATH', '')}"}
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}"}
     p = subprocess.run([SNAKEMAKE, "--profile", "workflow/profiles/default", "--configfile", str(cfg), *args], cwd=ROOT,
                        env=env, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
