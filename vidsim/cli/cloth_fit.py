@@ -126,8 +126,9 @@ def run(cfg: DictConfig) -> None:
         "candidates": candidates(res.points, np.concatenate([res.grid_values, res.trace]), space, int(fc.n_candidates)),
         "n_evals": int(res.n_evals), "n_new_simulations": int(n_new), "n_failed": int(np.sum(res.trace >= FAILED_SCORE)),
         "seconds": {"features": round(t_feat, 2), "fit": round(t_fit, 2)},
-        "e_fold_mean": float(np.mean(ev.e_fold[0])) if ev.ok else None,
-        "e_silh_mean": float(np.mean(ev.e_silh[0])) if ev.ok else None,
+        # per trial (in "trials" order): the mean per-frame fold and silhouette terms of the best set
+        "e_fold_mean": [float(np.mean(e)) for e in ev.e_fold] if ev.ok else None,
+        "e_silh_mean": [float(np.mean(e)) for e in ev.e_silh] if ev.ok else None,
         "config": to_plain(cfg.cloth.fit),
     }
     vals = np.concatenate([res.grid_values, res.trace])

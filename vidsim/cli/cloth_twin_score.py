@@ -67,8 +67,14 @@ def run(cfg: DictConfig) -> None:
                    "determined": None if p is None else bool(p["determined"]),
                    "interval": None if p is None else p["interval"],
                    "truth_in_interval": None if p is None else bool(p["interval"][0] <= t <= p["interval"][1])}
-    ratio = e_est / e_true if e_true > 0 else float("inf")
-    checks = {"heldout_ratio": {"value": ratio, "target": float(tc.heldout_ratio), "met": bool(ratio <= tc.heldout_ratio)}}
+    if not res_true.ok:  # no reference: the ratio would compare with a failure score (1e30) and pass trivially
+        ratio = float("nan")
+        print(f"cloth_twin_score: the true parameters failed to simulate on {tc.footage} ({res_true.failure}): "
+              "no held-out ratio", flush=True)
+    else:
+        ratio = e_est / e_true if e_true > 0 else float("inf")
+    checks = {"heldout_ratio": {"value": ratio, "target": float(tc.heldout_ratio),
+                                "met": bool(res_true.ok and ratio <= tc.heldout_ratio)}}
     scale = truth_scale(obj, true, e_true, obj.space.names, float(tc.perturb_sigma), int(tc.perturb_draws),
                         int(tc.perturb_seed), float(tc.heldout_ratio), true_ok=bool(res_true.ok))
     if scale is not None:

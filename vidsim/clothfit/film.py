@@ -159,8 +159,12 @@ def swatch_model_mesh(corners0: np.ndarray, resolution: int, size: float) -> Clo
     if span < 1e-6:
         raise ClothFilmError("the two gripped corners coincide at frame 0")
     au /= span
-    av = np.array([0.0, 0.0, -1.0]) - au[2] * au
-    av /= np.linalg.norm(av)
+    # down, made perpendicular to the corner line (Gram-Schmidt: d - (d . au) au with d = -z, d . au = -au_z)
+    av = np.array([0.0, 0.0, -1.0]) + au[2] * au
+    nv = float(np.linalg.norm(av))
+    if nv < 1e-6:
+        raise ClothFilmError("the two gripped corners are one above the other at frame 0: no downward direction")
+    av /= nv
     return swatch(int(resolution), int(resolution), span, float(size), origin=tuple(c[0]), axis_u=tuple(au),
                   axis_v=tuple(av))
 

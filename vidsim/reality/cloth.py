@@ -707,10 +707,10 @@ class _VertexVelocity:
 
 
 # --------------------------------------------------------------------------------------- skirt
-#: Skipping body (kinematic, known like motion capture). Units: m, Hz, rad. The waist bobs once
-#: per step (``bob * |sin(pi f t)|``), sways sideways (x), rolls (about y) and yaws (about z) once
-#: per stride (two steps), and the legs (capsules from the hips) swing forward/back (about x) in
-#: opposition.
+#: Skipping body (kinematic, known like motion capture). Units: m, Hz, rad. The waist bobs twice
+#: per step (``bob * |sin(2 pi f t)|``, f = ``step_frequency``: a hop on each half of the step),
+#: sways sideways (x), rolls (about y) and yaws (about z) once per stride (two steps), and the legs
+#: (capsules from the hips) swing forward/back (about x) in opposition.
 SKIRT_MOTIONS: dict[str, dict[str, Any]] = {
     "skip": {"waist": [0.0, 0.0, 1.0], "step_frequency": 2.2, "bob": 0.05, "sway": 0.03,
              "roll": 0.12, "yaw": 0.2, "leg_swing": 0.55, "hip_width": 0.18, "hip_drop": 0.08,
@@ -775,7 +775,7 @@ def skirt_frames(motion: dict[str, Any], times: np.ndarray) -> dict[str, np.ndar
     ph = np.pi * m["step_frequency"] * t
     pos = np.repeat(m["waist"][None, :], len(t), axis=0)
     pos[:, 0] += env * m["sway"] * np.sin(ph)
-    pos[:, 2] += env * m["bob"] * np.abs(np.sin(2 * ph)) * 0.5 * 2
+    pos[:, 2] += env * m["bob"] * np.abs(np.sin(2 * ph))
     rot = np.stack([_rot(e * m["roll"] * np.sin(p), e * m["yaw"] * np.sin(p + 0.5)) for e, p in zip(env, ph)])
     swing = env * m["leg_swing"] * np.sin(ph)
     legs = np.empty((len(t), 2, 2, 3))

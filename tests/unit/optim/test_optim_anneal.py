@@ -33,6 +33,35 @@ def test_anneal_finds_rosenbrock_minimum():
     assert len(r.resets) >= 1  # the schedule reached at least one simplex reset
 
 
+def test_simplex_resets_at_the_best_point_each_time_the_temperature_falls_threefold():
+    """The schedule of the issue: geometric cooling, and a new simplex at the best point so far each
+    time the temperature has fallen by a factor of three since the last reset (or the start)."""
+    pts = []
+
+    def f(u):
+        pts.append(np.array(u, float))
+        return rosenbrock(u)
+
+    cfg = AnnealConfig(budget=3000, seed=1)
+    r = anneal(f, np.array([0.2, 0.3, 0.25]), cfg)
+    T = r.temperatures
+    assert len(r.resets) >= 3
+    s0 = int(np.argmax(T > 0))  # the start simplex is evaluated before T0 is set (from its spread)
+    assert s0 == 4 and np.all(T[s0:] > 0)
+    T = T[s0:]
+    # geometric cooling: every change of temperature is one factor `cooling`
+    steps = T[1:][T[1:] != T[:-1]] / T[:-1][T[1:] != T[:-1]]
+    assert len(steps) > 30 and np.allclose(steps, cfg.cooling)
+    T = r.temperatures
+    ref = T[s0]
+    for k in r.resets:
+        # the temperature has just fallen below 1/3 of the last reset's (not earlier, not later)
+        assert T[k] <= ref / cfg.reset_factor * (1 + 1e-12) < T[k] / cfg.cooling
+        ref = T[k]
+        # the new simplex's first vertex is the best point evaluated so far
+        np.testing.assert_array_equal(pts[k], pts[int(np.argmin(r.trace[:k]))])
+
+
 def test_anneal_escapes_local_minima_better_than_zero_temperature():
     """Rastrigin from a poor start: with temperature, annealing ends lower than plain simplex (T ~ 0)."""
     u0 = np.full(4, 0.15)
