@@ -17,6 +17,7 @@ from vidsim.cloth.params import (
 )
 from vidsim.cloth.simulate import (
     ClothInputError,
+    ClothStepError,
     DrivenVertices,
     SimResult,
     compute_forces,
@@ -40,6 +41,7 @@ __all__ = [
     "ColliderError",
     "count_self_intersections",
     "ClothInputError",
+    "ClothStepError",
     "DrivenVertices",
     "SimResult",
     "simulate",

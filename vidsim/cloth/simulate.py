@@ -66,6 +66,7 @@ from vidsim.cloth.params import ClothParams
 
 __all__ = [
     "ClothInputError",
+    "ClothStepError",
     "DrivenVertices",
     "SimResult",
     "simulate",
@@ -77,6 +78,12 @@ __all__ = [
 
 class ClothInputError(ValueError):
     """Invalid input to the cloth simulator (shapes, times, driver coverage, ...)."""
+
+
+class ClothStepError(ClothInputError):
+    """A fixed step ``dt`` beyond what these parameters allow (with a settle bath): for a caller
+    that sweeps parameters at a fixed step (the gap diagnosis), a failed run of that parameter set
+    rather than a wrong input."""
 
 
 @dataclass(frozen=True)
@@ -700,7 +707,7 @@ def simulate(
                 if dt is None:
                     h_auto = min(h_auto, safety * h_bath)
                 elif float(dt) > h_bath:
-                    raise ClothInputError(f"settle_bath {settle_bath} 1/s is too strong for the fixed step dt = {dt:.3g} s "
+                    raise ClothStepError(f"settle_bath {settle_bath} 1/s is too strong for the fixed step dt = {dt:.3g} s "
                                           f"(velocity Verlet with the bath is stable up to {h_bath:.3g} s)")
         dt_used = h_auto if dt is None else float(dt)
         stats["damping"] = mode

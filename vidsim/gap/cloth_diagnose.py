@@ -67,7 +67,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from vidsim.cloth import ClothParams
+from vidsim.cloth import ClothParams, ClothStepError
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup, hermite, soft_coverage
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
@@ -878,7 +878,7 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
         kw = dict(multirate=st.multirate, damping=st.damping)
     try:
         res = simulate(mesh, p, drv, st.times, integrator="fast", t0=t0, settle_bath=st.settle_bath, **kw)
-    except ArithmeticError as e:
+    except (ArithmeticError, ClothStepError) as e:
         raise ClothGapError(f"the floor's twin of the fit ({res_f}x{res_f}) failed to simulate: "
                             f"{type(e).__name__}: {e}") from e
     if not res.ok:

@@ -26,10 +26,13 @@ Dynamics (what the simulator is given)::
 Imaging and timing (the camera, not the motion; no re-simulation)::
 
     lens_k1         k1 (-)       radial distortion the calibration missed
-    motion_blur     b  (s^2)     exposure^2: the silhouette is the mean over an exposure sqrt(b)
-                                 centred on the frame time (a one-sided exposure is this plus a
-                                 time offset of half of it); ``blur_threshold`` segments it
-                                 instead (rigid_model.segmented_blur; off by default here)
+    motion_blur     b  (s^2)     exposure^2: the silhouette is the mean of 3 renders spread
+                                 evenly over sqrt(b) centred on the frame time (time variance
+                                 b/6; a continuous exposure E has the same second moment at
+                                 b = E^2/2, the twin's 5-sample one at 0.75 E^2; a one-sided
+                                 exposure is this plus a time offset of half of it);
+                                 ``blur_threshold`` segments it instead
+                                 (rigid_model.segmented_blur; off by default here)
     rolling_shutter rs (s)       image row v is captured rs v / H after row 0
     time_offset     dt (s)       every frame is captured dt after the time the corner paths give
     time_rate       r  (-)       the frame clock runs fast: t -> t_first + (t - t_first)(1 + r)
@@ -69,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from vidsim.cloth import ClothParams, simulate, stable_step
+from vidsim.cloth import ClothParams, ClothStepError, simulate, stable_step
 from vidsim.cloth.simulate import MULTIRATE_FRACTION, MULTIRATE_MAX
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
 from vidsim.gap.rigid_model import EffectSpec, segmented_blur
@@ -510,7 +513,7 @@ class ClothGapModel:
                            settle_bath=self.setup.settle_bath, multirate=self.multirate_r,
                            damping=self.damping_mode)
             out = (res.positions, res.velocities, bool(res.ok))
-        except ArithmeticError:
+        except (ArithmeticError, ClothStepError):  # a numerical fault, or a set too stiff for the fixed step
             T, N = self.setup.times.size, self.mesh.n_vertices
             out = (np.full((T, N, 3), np.nan), np.full((T, N, 3), np.nan), False)
         self._sim_cache.append((key, out))

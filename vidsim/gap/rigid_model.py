@@ -54,6 +54,9 @@ from vidsim.rigid.dynamics import G_EARTH, gravity_vector, initial_state, quat_t
 from vidsim.rigid.silhouette import render_coverage
 from vidsim.video.camera import PinholeCamera
 
+#: renders of a blurred frame spread evenly over sqrt(b), both ends included (time variance b/8)
+BLUR_SAMPLES = 5
+
 
 class GapError(ValueError):
     """Bad input to the gap diagnosis (unknown effect, wrong shape); the message names it."""
@@ -446,7 +449,7 @@ class RigidGapModel:
         theta = np.asarray(theta, float)
         idx = np.arange(len(self.times)) if frames is None else np.asarray(frames, int)
         cam = self._camera(theta)
-        n_exp = 5 if float(self.get(theta, "motion_blur")[0]) > 0 else 1
+        n_exp = BLUR_SAMPLES if float(self.get(theta, "motion_blur")[0]) > 0 else 1
         n_rs = RS_SLABS if float(self.get(theta, "rolling_shutter")[0]) != 0.0 else 1
         sub = self._sub_times(theta, idx, n_exp, n_rs)
         X, Q, ok = self.poses(theta, sub)

@@ -38,6 +38,9 @@ from vidsim.rigid.body import BoxBody, RigidBodyError, t_object
 from vidsim.rigid.dynamics import gravity_angles, quat_to_rot, rot_to_quat
 from vidsim.video.camera import PinholeCamera, intrinsics
 
+#: renders averaged over a blurred frame's exposure, evenly spaced over it, both ends included
+BLUR_SAMPLES = 7
+
 os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
 
 AIR_DENSITY = 1.2
@@ -295,7 +298,7 @@ def make_throw(seed: int, cfg: RigidRealityConfig | None = None, effects: RigidE
     t_throw0 = n_bg / cfg.fps
     actual = nominal + (rng.normal(0, effects.time_jitter, nominal.shape) if effects.time_jitter > 0 else 0.0)
     # sub-samples: exposure (blur) x rolling-shutter slabs
-    n_exp = 1 if effects.exposure <= 0 else 7
+    n_exp = 1 if effects.exposure <= 0 else BLUR_SAMPLES
     # 48 slabs of 10 rows at 480 px: close to a per-row read-out (12 slabs, used until session 18,
     # left a staircase that a model with a finer read-out cannot match: docs/gap.md)
     n_rs = 1 if effects.rolling_shutter <= 0 else 48

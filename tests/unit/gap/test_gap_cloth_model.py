@@ -283,3 +283,35 @@ def test_setup_refuses_unknown_schemes(setup, field, value):
 
     with pytest.raises(ClothGapError, match=field):
         dc_replace(setup, **{field: value})
+
+
+def test_a_trial_too_stiff_for_the_fixed_step_with_a_bath_is_a_failed_run(setup, params0):
+    """The gap model simulates at one fixed step; with a settle bath a stiffer trial set can exceed
+    that step's stability limit, which simulate refuses (ClothStepError). Inside the diagnosis's
+    refits that is a failed run of the set, not a crash of the diagnosis (review, 5 Dec 2026)."""
+    import dataclasses
+
+    m0 = ClothGapModel(setup, params0, ESTIMATED, (), scale=0.5)
+    bathed = dataclasses.replace(setup, settle_bath=0.45 / m0.dt)
+    m = ClothGapModel(bathed, params0, ESTIMATED, (), scale=0.5)
+    th = m.theta0()
+    assert m.simulate(th)[2]  # the fit's own set runs
+    th[ESTIMATED.index("stretch")] += np.log(10.0)
+    P, V, ok = m.simulate(th)
+    assert not ok and np.all(np.isnan(P))
+
+
+def test_blur_truth_is_the_libraries_b_with_the_twins_second_moment(setup, params0):
+    """The library's b blurs over 3 equal renders spread over sqrt(b) (time variance b/6); the twin
+    films n equal samples over an exposure E, variance E^2 (n+1)/(12(n-1)). The strength the library
+    should recover has the same variance: 0.75 E^2 for 5 samples (it was scored against E^2)."""
+    from vidsim.gap.cloth_suite import ClothSceneConfig, true_strengths
+
+    scene = ClothSceneConfig()
+    E = 0.8 / scene.fps
+    got = true_strengths({"kind": "twin", "effects": {"motion_blur": {"exposure": 0.8, "samples": 5}}}, scene)
+    assert got["motion_blur"][0] == pytest.approx(0.75 * E * E, rel=1e-12)
+    # the variance match itself: 5 evenly spaced sample times over E against the library's 3 over sqrt(b)
+    twin_times = np.linspace(0.0, E, 5)
+    lib_times = np.linspace(-0.5, 0.5, 3) * np.sqrt(got["motion_blur"][0])
+    assert np.var(twin_times) == pytest.approx(np.var(lib_times), rel=1e-12)
