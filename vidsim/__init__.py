@@ -35,13 +35,15 @@ def _numba_cache_dir() -> None:
     import time
     from pathlib import Path
 
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return
+    global SOURCE_DIGEST
     root = Path(__file__).resolve().parent
     h = hashlib.sha1()
     for f in sorted(root.rglob("*.py")):
         h.update(f.relative_to(root).as_posix().encode())
         h.update(f.read_bytes())
+    SOURCE_DIGEST = h.hexdigest()
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
     base = root.parent / ".numba_cache"
     here = base / h.hexdigest()[:16]
     os.environ["NUMBA_CACHE_DIR"] = str(here)
@@ -55,4 +57,7 @@ def _numba_cache_dir() -> None:
         pass
 
 
+#: SHA-1 of every .py file of the package (the code version: checkpoints of intermediate work that
+#: code changes invalidate carry it in their keys)
+SOURCE_DIGEST = ""
 _numba_cache_dir()

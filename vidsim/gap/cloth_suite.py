@@ -484,7 +484,9 @@ def footprints(case: dict, cc: ClothCase, scene: ClothSceneConfig, cloth_cfg) ->
     """How visible a twin case's effect is (scoring only: it films the truth without the effect).
 
     ``effect_footprint_px``: silhouette pixels per frame that differ between the case's footage and
-    the same twin filmed without its effects with the same sensor-noise draws (None for a null
+    the same twin filmed without its effects with the same sensor-noise draws (the jitter case draws
+    its time errors from the case's generator first, so its replica's noise draws differ: its
+    footprint includes about one noise footprint) (None for a null
     case); ``noise_footprint_px``: the same between two films without effects that differ only by
     the sensor noise (seed + 1; pixels flipped by the noise in either film, so about twice one
     film's flips: the comparison of a footage with a replica). An effect whose footprint is not clearly above the noise's cannot
