@@ -209,3 +209,16 @@ def test_fluid_rates_and_counts_are_checked_before_any_work(tmp_path, module, ov
                         f"paths.out={tmp_path}/o", override], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr, r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_a_malformed_stage_document_is_named_not_a_key_error(tmp_path):
+    """A score.yaml with 'errors' but no 'success' gave KeyError: 'success' and a traceback (review,
+    5 Dec 2026); the stage now names the file and the fields it lacks."""
+    sc = tmp_path / "results" / "rigid" / "t1" / "score.yaml"
+    sc.parent.mkdir(parents=True)
+    sc.write_text(yaml.safe_dump({"errors": {"position_cm": 1.0}}))
+    r = subprocess.run([sys.executable, "-m", "vidsim.cli.rigid_summary", f"paths.results={tmp_path / 'results'}",
+                        f"paths.out={tmp_path / 'results' / 'rigid'}", f"rigid.paths.scores='{sc}'"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr[-2000:]
+    assert "score.yaml: missing field(s)" in r.stderr and "'success'" in r.stderr

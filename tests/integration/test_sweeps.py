@@ -80,3 +80,59 @@ def test_sweep_point_names_parse_back_to_their_values():
         "calibrate__noise_sigma": "0.5", "calibrate__n_views": "12"}
     with pytest.raises(VidsimError, match="calibrate__n_views"):
         parse_point("calibrate__noise_sigma-0.5", cols)
+
+
+PROBE = '''
+import sys
+from vidsim.cli._app import stage_app
+from vidsim.video.camera import CameraError
+
+
+def run(cfg):
+    if int(cfg.seed) == 1:
+        raise CameraError("probe: field 'K' is singular")  # a vidsim ValueError, not a VidsimError
+    print("probe ran", cfg.seed)
+
+
+main = stage_app("probe", run)
+main()
+'''
+
+
+def _probe(tmp: Path, *args: str) -> subprocess.CompletedProcess:
+    f = tmp / "probe_stage.py"
+    f.write_text(PROBE)
+    return subprocess.run([sys.executable, str(f), *args, f"paths.results={tmp / 'results'}", "log.rerun=false"],
+                          cwd=REPO_ROOT, capture_output=True, text=True, env=_env(), timeout=300)
+
+
+def test_sweep_points_failing_with_any_project_error_are_marked_not_tracebacks(tmp_path):
+    """A project ValueError that is not a VidsimError (CameraError, FeatureError, ...) failed a sweep
+    point with a traceback and exit 1, and the sweep's summary line never came (review, 5 Dec 2026)."""
+    r = _probe(tmp_path, "-m", "seed=0,1,2")
+    assert r.returncode == 2, r.stdout[-2000:] + r.stderr[-2000:]
+    assert "Traceback" not in r.stderr and "field 'K' is singular" in r.stderr
+    assert "1 sweep point(s) failed" in r.stderr and r.stdout.count("probe ran") == 2
+    failed = tmp_path / "results" / "sweeps" / "probe" / "failed.csv"
+    assert len(list(csv.DictReader(failed.open()))) == 1
+    # the same sweep again: failed.csv is this sweep's, not the two sweeps' rows
+    r = _probe(tmp_path, "-m", "seed=0,1,2")
+    assert r.returncode == 2 and len(list(csv.DictReader(failed.open()))) == 1
+
+
+def test_sweep_overrides_are_checked_like_single_runs(tmp_path):
+    """'+' keys under a schema node were not checked in sweeps (the points ran, the key ignored)."""
+    r = _probe(tmp_path, "-m", "+rigid.fit.max_iter=5", "seed=0,2")
+    assert r.returncode == 2 and "rigid.fit.max_iter (added with '+') is unknown" in r.stderr, r.stderr[-2000:]
+    assert "probe ran" not in r.stdout
+    r = _probe(tmp_path, "-m", "camera.focal=3", "seed=0,2")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "camera.focal" in r.stderr, r.stderr[-2000:]
+
+
+def test_output_folder_must_lie_inside_results_and_be_given(tmp_path):
+    """paths.out equal to the results folder would let a stage replace the whole results tree."""
+    res = tmp_path / "results"
+    r = _probe(tmp_path, f"paths.out={res}", "seed=0")
+    assert r.returncode == 2 and "is the results folder itself" in r.stderr, r.stderr[-2000:]
+    r = _probe(tmp_path, "seed=0")  # no paths.out at all
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "paths.out is required" in r.stderr, r.stderr[-2000:]

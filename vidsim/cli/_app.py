@@ -33,7 +33,12 @@ def check_paths(cfg: DictConfig) -> None:
 
     results = Path(cfg.paths.results).resolve()
     out = Path(cfg.paths.out).resolve()
-    if out != results and results not in out.parents:
+    if out == results:
+        # stages replace their output folder as a whole (a staging folder moved over it): the
+        # results folder itself would lose every other stage's outputs
+        raise ConfigError(f"paths.out = {cfg.paths.out!r} is the results folder itself (paths.results); give a "
+                          "folder inside it, e.g. paths.out=${paths.results}/mine")
+    if results not in out.parents:
         raise ConfigError(f"paths.out = {cfg.paths.out!r} escapes the results folder {str(results)!r} (paths.results)")
 
 
@@ -62,11 +67,12 @@ def _fail(name: str, e: Exception) -> None:
 
     hc = HydraConfig.get()
     point = hc.job.override_dirname or str(hc.job.num)
+    first = not _FAILED_POINTS  # this process's first failed point: an older sweep's file is replaced
     _FAILED_POINTS.append(point)
     msg = str(e).replace('"', "'")
     row = f'"{point}","{msg}"\n'
     csv = Path(hc.sweep.dir) / "failed.csv"
-    old = csv.read_text() if csv.exists() else "point,error\n"
+    old = csv.read_text() if csv.exists() and not first else "point,error\n"
     write_text(csv, old + row)
     job_dir = Path(hc.runtime.output_dir)
     if job_dir.is_dir() and not any(job_dir.iterdir()):
@@ -84,18 +90,29 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
         import cv2
 
         cv2.setNumThreads(int(os.environ.get("VIDSIM_OPENCV_THREADS", "1")))
+        from omegaconf.errors import MissingMandatoryValue
+
         try:
             validate(cfg)
             check_paths(cfg)
+            level = str(cfg.log.level).upper()
+            if level not in ("DEBUG", "INFO", "WARNING", "ERROR", "CRITICAL"):
+                from vidsim.errors import ConfigError
+
+                raise ConfigError(f"log.level = {cfg.log.level!r}: expected DEBUG, INFO, WARNING, ERROR or CRITICAL")
+            log.setLevel(level)  # the project's logger ("vidsim" and its children)
             run(cfg)
         except (VidsimError, FileNotFoundError) as e:
             _fail(name, e)
+        except MissingMandatoryValue as e:  # e.g. no paths.out: name the key, no traceback
+            _fail(name, f"{e.full_key or 'a setting'} is required and was not given (missing value '???')")
         except ValueError as e:
             # the project's own validation errors (CameraError, CalibrationError, ...) are
-            # ValueError subclasses defined in vidsim modules: one line, no traceback
-            if type(e).__module__.startswith("vidsim"):
-                _fail(name, e)
-            raise
+            # ValueError subclasses defined in vidsim modules: one line, no traceback (in a sweep
+            # the point is marked failed and the sweep goes on, as for any VidsimError)
+            if not type(e).__module__.startswith("vidsim"):
+                raise
+            _fail(name, e)
 
     def _entry() -> None:
         args = sys.argv[1:]
@@ -118,10 +135,12 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
 
 def _precheck_overrides(name: str, args: list[str]) -> None:
     """Compose the config once before Hydra does, to turn a bad override (unknown key, wrong
-    type) into one line instead of Hydra's multi-line report. Sweeps and Hydra flags
-    (arguments starting with '-') are left to Hydra."""
+    type, a ``+`` key a schema node does not have) into one line instead of Hydra's multi-line
+    report or a silently ignored key. In a sweep the same checks run on the overrides that are not
+    sweeps (Hydra flags, starting with '-', and swept values, with a ',' or a sweep function,
+    are left to Hydra)."""
     if any(a.startswith("-") for a in args):
-        return
+        args = [a for a in args if not a.startswith("-") and not _is_sweep(a)]
     from hydra import compose, initialize_config_dir
     from hydra.errors import HydraException
 
@@ -138,6 +157,22 @@ def _precheck_overrides(name: str, args: list[str]) -> None:
     if bad:
         print(f"vidsim {name}: error: {bad}", file=sys.stderr)
         sys.exit(2)
+
+
+def _is_sweep(arg: str) -> bool:
+    """A Hydra sweep override (``k=a,b``, ``k=range(...)``, ``k=choice(...)``, ...)."""
+    if "=" not in arg:
+        return False
+    value = arg.split("=", 1)[1]
+    depth = 0
+    for ch in value:  # a ',' outside brackets and quotes is a sweep list; inside [..] a list value
+        if ch in "[{(":
+            depth += 1
+        elif ch in "]})":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            return True
+    return value.split("(", 1)[0] in ("range", "choice", "interval", "glob", "tag", "sort", "shuffle")
 
 
 def unknown_added_key(cfg: DictConfig, args: list[str]) -> str | None:

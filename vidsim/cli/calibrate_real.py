@@ -38,7 +38,6 @@ def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
     w, h = res.image_size
     cam = {"width": w, "height": h, "K": res.K, "dist": res.dist, "R": np.eye(3), "t": np.zeros(3)}
-    write_yaml(out / "calibration.yaml", {"camera": cam})
     ours = {"rms_px": res.rms, "fx": res.K[0, 0], "fy": res.K[1, 1], "cx": res.K[0, 2], "cy": res.K[1, 2]}
     rows = ["quantity,vidsim,opencv_reference,difference"]
     rows += [f"{k},{ours[k]:.4f},{REFERENCE[k]:.4f},{ours[k] - REFERENCE[k]:+.4f}" for k in REFERENCE]
@@ -51,6 +50,7 @@ def run(cfg: DictConfig) -> None:
     ax.set_ylabel("reprojection RMS [px]")
     ax.legend(fontsize=8)
     save_figure(fig, out / "reprojection.png")
+    write_yaml(out / "calibration.yaml", {"camera": cam})  # the main output last
     print(f"calibrate_real: RMS {res.rms:.4f} px, fx {res.K[0, 0]:.2f}, cx {res.K[0, 2]:.2f}, cy {res.K[1, 2]:.2f} ({res.n_views} views)")
 
 

@@ -47,9 +47,17 @@ def run(cfg: DictConfig) -> None:
     trials = [load_trial(f, cfg) for f in footage]
     objs = [make_objective([tr], cfg) for tr in trials]
     cands = []
+    names = objs[0].space.names
     for i, d in enumerate(docs):
+        if "params" not in d and not d.get("candidates"):
+            raise ClothStageError(f"{fits[i]}: neither 'candidates' nor 'params' (not a fit_cloth output)")
         for k, c in enumerate(d.get("candidates") or [{"theta": d["params"]}]):
-            cands.append((f"{trials[i].name}#{k}", c["theta"]))
+            theta = c.get("theta") if isinstance(c, dict) else None
+            lacking = [n for n in names if not isinstance(theta, dict) or n not in theta]
+            if lacking:
+                raise ClothStageError(f"{fits[i]}: candidate {k} lacks the estimated parameter(s) {lacking} (the fit "
+                                      f"estimated other parameters than cloth.fit.estimate = {list(names)}?)")
+            cands.append((f"{trials[i].name}#{k}", theta))
     prog = Progress(len(cands) * len(trials), "select_cloth evaluations", enabled=cfg.log.progress)
     rows = []
     for label, theta in cands:

@@ -113,7 +113,12 @@ def _stills_figure(stills: list, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    if not stills:
+    if not stills:  # every fabric failed on its own skirt: say so in the declared figure
+        fig, ax = plt.subplots(figsize=(6, 1.5))
+        ax.text(0.5, 0.5, "no side-by-side: every fabric's parameters failed to simulate on its own skirt "
+                "(skirt.yaml, the log)", ha="center", va="center", fontsize=8, wrap=True)
+        ax.set_axis_off()
+        save_figure(fig, path)
         return
     fig, axes = plt.subplots(len(stills), 3, figsize=(9, 1.7 * len(stills) + 0.4), squeeze=False)
     for row, (fab, ims) in zip(axes, stills):

@@ -16,6 +16,7 @@ from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
+    ClothStageError,
     fabric_matrix,
     fabric_sets,
     matrix_csv,
@@ -31,6 +32,9 @@ def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
     fabrics, pfiles, footage, sets = fabric_sets(cfg.cloth.validate, "cloth.validate")
     sel = read_selected(pfiles)
+    for f, s_ in zip(pfiles, sel):  # checked before the matrix's simulations, not after them
+        if not isinstance(s_.get("trials"), list):
+            raise ClothStageError(f"{f}: field 'trials' is missing (not a select_cloth output)")
     E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth")
     n = len(fabrics)
     wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]

@@ -120,9 +120,6 @@ def run(cfg: DictConfig) -> None:
         print(f"fluid_flow: {name}: EPE {summary['epe_px']:.3f} px ({fc.baseline}: {summary['epe_px_baseline']:.3f} px), "
               f"mean true speed {summary['mean_speed_true_px']:.3f} px/frame; "
               f"in visible fluid EPE {summary.get('epe_px_visible_fluid', float('nan')):.3f} px", flush=True)
-    write_npz(out / "flow.npz", flow=flow)
-    write_json(out / "summary.json", summary)
-    write_text(out / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in summary.items()))
     _figure(frames, flow, truth, out / "flow.png", f"{name}: optical flow ({fc.method})", max(4, int(fc.arrow_step)))
     prog = Progress(flow.shape[0], f"fluid_flow {name} recording", enabled=cfg.log.progress)
     with make_logger(out / "flow.rrd", "vidsim.fluid_flow", cfg.log.rerun) as lg:
@@ -137,6 +134,10 @@ def run(cfg: DictConfig) -> None:
             prog.update()
         if epe_frames is not None:
             lg.series("metric/flow_epe_px", epe_frames, timeline="frame")
+    # the main outputs last: a kill while the figure or recording is written leaves no new flow beside old figures
+    write_text(out / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in summary.items()))
+    write_json(out / "summary.json", summary)
+    write_npz(out / "flow.npz", flow=flow)
 
 
 main = stage_app("fluid_flow", run)

@@ -73,9 +73,9 @@ def run(cfg: DictConfig) -> None:
         print(f"fluid_middlebury: {sc}: " + ", ".join(f"{m} {e:.3f} px" for m, e in res[sc].items()), flush=True)
     for ax in axes.ravel():
         ax.axis("off")
-    write_text(out / "epe.csv", "\n".join(rows) + "\n")
-    write_json(out / "summary.json", {"method": cfg.fluid.flow.method, "epe_px": res})
     save_figure(fig, out / "middlebury.png")
+    write_json(out / "summary.json", {"method": cfg.fluid.flow.method, "epe_px": res})
+    write_text(out / "epe.csv", "\n".join(rows) + "\n")  # the main output last
 
 
 main = stage_app("fluid_middlebury", run)

@@ -114,7 +114,6 @@ def run(cfg: DictConfig) -> None:
     for fd in doc["flights"]:
         for k in ("weak_ts", "weak_30", "persp_ts", "persp_30"):
             fd[k].pop("frames", None)
-    write_yaml(out / "ball.yaml", doc)
     _plot(times, t_nom, centres, flights, fits, out / "ball.png")
     with make_logger(out / "ball.rrd", "vidsim.rigid_ball", cfg.log.rerun) as lg:
         for i in range(len(frames)):
@@ -128,6 +127,7 @@ def run(cfg: DictConfig) -> None:
                 lg.set_frame(int(k))
                 lg.scalar("metric/residual_px_timestamps", float(np.linalg.norm(f["persp_ts"].residuals[j])))
                 lg.scalar("metric/residual_px_constant_fps", float(np.linalg.norm(f["persp_30"].residuals[j])))
+    write_yaml(out / "ball.yaml", doc)  # the main output last
     r = doc["rms_px"]
     print(f"rigid_ball: ball found in {found.sum()}/{found.size} in-view frames ({100 * found.mean():.1f} %); "
           f"{len(flights)} flights; RMS px perspective {r['perspective_timestamps']:.2f} (timestamps) / "

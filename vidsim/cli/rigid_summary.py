@@ -31,6 +31,13 @@ def run(cfg: DictConfig) -> None:
         d = load_yaml(p)
         if not isinstance(d, dict) or "errors" not in d:
             raise RigidStageError(f"{p}: missing field 'errors' (not a score_rigid output)")
+        missing = [k for k in ("success", "segmentation", "fit") if k not in d]
+        missing += [f"errors.{k}" for k in (*COLUMNS, "mean_iou_footage") if not isinstance(d["errors"], dict)
+                    or k not in d["errors"]]
+        missing += [f"{g}.{k}" for g, ks in (("segmentation", ("mean_iou",)), ("fit", ("seconds", "n_starts", "ambiguous")))
+                    for k in ks if isinstance(d.get(g), dict) and k not in d[g]]
+        if missing:
+            raise RigidStageError(f"{p}: missing field(s) {missing} (not a score_rigid output of this version)")
         rows.append((p.parent.name, d))
     head = ["case", "seed", "success", *COLUMNS, "mean_iou_footage", "segmentation_iou", "fit_seconds", "n_starts",
             "ambiguous", "effects_on"]

@@ -52,11 +52,19 @@ def validate(cfg: DictConfig) -> None:
     r = cfg.reality
     _check(r.n_frames > 0, "reality.n_frames", r.n_frames, "> 0")
     _check(_finite(r.fps) and r.fps > 0, "reality.fps", r.fps, "> 0 frames per second")
-    _check(r.lead_in_s >= 0, "reality.lead_in_s", r.lead_in_s, ">= 0 s")
+    _check(_finite(r.lead_in_s) and r.lead_in_s >= 0, "reality.lead_in_s", r.lead_in_s, "a finite time >= 0 s")
     rd = cfg.render
     _check(rd.backend in ("pyrender", "raster"), "render.backend", rd.backend, "'pyrender' or 'raster'")
     _check(_finite(rd.noise_sigma) and rd.noise_sigma >= 0, "render.noise_sigma", rd.noise_sigma, ">= 0")
     _check(0 <= rd.jpeg_quality <= 100, "render.jpeg_quality", rd.jpeg_quality, "0 (off) to 100")
+    _check(_finite(rd.blur_sigma_px) and rd.blur_sigma_px >= 0, "render.blur_sigma_px", rd.blur_sigma_px, ">= 0 px (0: off)")
+    _check(_finite(rd.light_intensity) and rd.light_intensity >= 0, "render.light_intensity", rd.light_intensity, ">= 0")
+    for key, v in _leaves_named(cfg, "jpeg_quality"):  # every family's
+        _check(0 <= v <= 100, key, v, "0 (off) to 100")
+    for key, v in _leaves_named(cfg, "frame_stride"):
+        _check(isinstance(v, int) and v >= 1, key, v, "a whole number >= 1 (every k-th footage frame)")
+    for key, v in _leaves_named(cfg, "max_frames"):
+        _check(v is None or (isinstance(v, int) and v >= 0), key, v, "a whole number >= 0 (0: all frames)")
     d = cfg.effects.dynamics
     for k in ("air_drag", "angular_drag", "magnus"):
         _check(_finite(d[k]) and d[k] >= 0, f"effects.dynamics.{k}", d[k], ">= 0")

@@ -58,7 +58,8 @@ use rule calibrate_scene as calibrate_cloth_scene with:
         rrd=f"{RESULTS}/calibration/cloth/calibrate.rrd",
     params:
         out=get_out_dir,
-        extra=f"{stage_overrides('calibrate_scene', 'calibrate_cloth_scene')} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA}",
+        extra=f"{STAGE_BASE} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA} "
+        f"{stage_own('calibrate_scene', 'calibrate_cloth_scene')}".strip(),
     benchmark:
         f"{RESULTS}/benchmarks/calibrate_cloth.tsv"
     log:
@@ -86,7 +87,8 @@ rule reality_cloth:
         rrd=f"{RESULTS}/footage/cloth_{{fabric}}_{{trial}}/reality.rrd",
     params:
         out=get_out_dir,
-        extra=stage_overrides("reality_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("reality_cloth"),
         cloth=CLOTH_REALITY_HYDRA,
         fabric=cloth_fabric_reality_overrides,
     benchmark:
@@ -101,7 +103,7 @@ rule reality_cloth:
     shell:
         "python -m vidsim.cli.cloth_reality paths.calibration={input.calib} paths.out={params.out} "
         "cloth.reality.fabric={wildcards.fabric} cloth.reality.motion={wildcards.trial} "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule fit_cloth:
@@ -120,7 +122,8 @@ rule fit_cloth:
         rrd=f"{RESULTS}/cloth/fit/{{fabric}}_{{trial}}/cloth.rrd",
     params:
         out=get_out_dir,
-        extra=stage_overrides("fit_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("fit_cloth"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -134,7 +137,7 @@ rule fit_cloth:
         runtime=90,  # quick: 32 CPU-s per 56 evaluations; full (664 evaluations) ~19 CPU-min extrapolated
     shell:
         "python -m vidsim.cli.cloth_fit paths.footage=$(dirname {input.meta}) paths.out={params.out} "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule select_cloth:
@@ -153,7 +156,8 @@ rule select_cloth:
     params:
         out=get_out_dir,
         inputs=cloth_select_inputs,
-        extra=stage_overrides("select_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("select_cloth"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -167,7 +171,7 @@ rule select_cloth:
         runtime=20,
     shell:
         "python -m vidsim.cli.cloth_select paths.out={params.out} {params.inputs} "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule validate_cloth:
@@ -183,6 +187,7 @@ rule validate_cloth:
             subcategory="validation",
         ),
         csv=f"{RESULTS}/cloth/validate/matrix.csv",
+        doc=f"{RESULTS}/cloth/validate/validation.yaml",
         table=report(
             f"{RESULTS}/cloth/validate/table1.csv",
             caption="../report/cloth_table1.rst",
@@ -198,7 +203,8 @@ rule validate_cloth:
     params:
         out=get_out_dir,
         inputs=cloth_validate_inputs,
-        extra=stage_overrides("validate_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("validate_cloth"),
         cloth=CLOTH_HYDRA,
     benchmark:
         f"{RESULTS}/benchmarks/validate_cloth.tsv"
@@ -211,7 +217,7 @@ rule validate_cloth:
         runtime=20,
     shell:
         "python -m vidsim.cli.cloth_validate paths.out={params.out} {params.inputs} "
-        "{params.extra} {params.cloth} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.extra} > {log} 2>&1"
 
 
 rule profile_cloth:
@@ -231,7 +237,8 @@ rule profile_cloth:
     params:
         out=get_out_dir,
         footage=cloth_meta_folders,
-        extra=stage_overrides("profile_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("profile_cloth"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -245,7 +252,7 @@ rule profile_cloth:
         runtime=60,
     shell:
         "python -m vidsim.cli.cloth_profile paths.out={params.out} cloth.profile.params={input.params} "
-        "cloth.profile.footage={params.footage} {params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "cloth.profile.footage={params.footage} {params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule score_cloth_twin:
@@ -271,7 +278,8 @@ rule score_cloth_twin:
         ),
     params:
         out=get_out_dir,
-        extra=stage_overrides("score_cloth_twin"),
+        base=STAGE_BASE,
+        extra=stage_own("score_cloth_twin"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -286,7 +294,7 @@ rule score_cloth_twin:
     shell:
         "python -m vidsim.cli.cloth_twin_score paths.out={params.out} cloth.twin.params={input.params} "
         "cloth.twin.profile={input.profile} cloth.twin.footage=$(dirname {input.meta}) "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 rule score_cloth_twin_joint:
     """Twin reality: the joint fit (one annealing over both trials) against the known truth, like score_cloth_twin."""
@@ -310,7 +318,8 @@ rule score_cloth_twin_joint:
         ),
     params:
         out=get_out_dir,
-        extra=stage_overrides("score_cloth_twin", "score_cloth_twin_joint"),
+        base=STAGE_BASE,
+        extra=stage_own("score_cloth_twin", "score_cloth_twin_joint"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -325,7 +334,7 @@ rule score_cloth_twin_joint:
     shell:
         "python -m vidsim.cli.cloth_twin_score paths.out={params.out} cloth.twin.params={input.params} "
         "cloth.twin.profile= cloth.twin.footage=$(dirname {input.meta}) "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule reality_skirt:
@@ -344,7 +353,8 @@ rule reality_skirt:
         rrd=f"{RESULTS}/footage/skirt_{{fabric}}/reality.rrd",
     params:
         out=get_out_dir,
-        extra=stage_overrides("reality_skirt"),
+        base=STAGE_BASE,
+        extra=stage_own("reality_skirt"),
         cloth=CLOTH_REALITY_HYDRA,
         skirt=CLOTH_SKIRT_HYDRA,
     benchmark:
@@ -359,7 +369,7 @@ rule reality_skirt:
     shell:
         "python -m vidsim.cli.cloth_reality paths.calibration={input.calib} paths.out={params.out} "
         "cloth.reality.fabric={wildcards.fabric} cloth.reality.object=skirt "
-        "{params.extra} {params.cloth} {params.skirt} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.skirt} {params.extra} > {log} 2>&1"
 
 
 rule skirt_cloth:
@@ -386,7 +396,8 @@ rule skirt_cloth:
     params:
         out=get_out_dir,
         inputs=cloth_skirt_inputs,
-        extra=stage_overrides("skirt_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("skirt_cloth"),
         cloth=CLOTH_HYDRA,
         skirt=CLOTH_SKIRT_HYDRA,
     benchmark:
@@ -400,7 +411,7 @@ rule skirt_cloth:
         runtime=30,
     shell:
         "python -m vidsim.cli.cloth_skirt paths.out={params.out} {params.inputs} "
-        "{params.extra} {params.cloth} {params.skirt} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.skirt} {params.extra} > {log} 2>&1"
 
 
 use rule fit_cloth as fit_cloth_cmaes with:
@@ -411,7 +422,8 @@ use rule fit_cloth as fit_cloth_cmaes with:
         rrd=f"{RESULTS}/cloth/fit_cmaes/{{fabric}}_{{trial}}/cloth.rrd",
     params:
         out=get_out_dir,
-        extra=f"{stage_overrides('fit_cloth', 'fit_cloth_cmaes')} cloth.fit.method=cmaes",
+        base=STAGE_BASE,
+        extra=f"{stage_own('fit_cloth', 'fit_cloth_cmaes')} cloth.fit.method=cmaes".strip(),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -445,7 +457,8 @@ rule fit_cloth_joint:
     params:
         out=get_out_dir,
         footage=cloth_meta_folders,
-        extra=stage_overrides("fit_cloth", "fit_cloth_joint"),
+        base=STAGE_BASE,
+        extra=stage_own("fit_cloth", "fit_cloth_joint"),
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
     benchmark:
@@ -459,7 +472,7 @@ rule fit_cloth_joint:
         runtime=180,  # two trials per evaluation: twice a per-trial fit
     shell:
         "python -m vidsim.cli.cloth_fit cloth.fit.footage={params.footage} paths.out={params.out} "
-        "{params.extra} {params.cloth} {params.fabric} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule compare_cloth:
@@ -497,7 +510,8 @@ rule compare_cloth:
     params:
         out=get_out_dir,
         inputs=cloth_compare_inputs,
-        extra=stage_overrides("compare_cloth"),
+        base=STAGE_BASE,
+        extra=stage_own("compare_cloth"),
         cloth=CLOTH_HYDRA,
     benchmark:
         f"{RESULTS}/benchmarks/compare_cloth.tsv"
@@ -510,4 +524,4 @@ rule compare_cloth:
         runtime=20,
     shell:
         "python -m vidsim.cli.cloth_compare paths.out={params.out} {params.inputs} "
-        "{params.extra} {params.cloth} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.extra} > {log} 2>&1"

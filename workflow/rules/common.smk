@@ -20,6 +20,17 @@ def stage_overrides(*stages):
     return f"paths.results={RESULTS} {HYDRA_EXTRA} {own}".strip()
 
 
+STAGE_BASE = f"paths.results={RESULTS} {HYDRA_EXTRA}".strip()
+
+
+def stage_own(*stages):
+    """Only the stages' own `overrides:` entries (see :func:`stage_overrides`), for rules that put a
+    family's settings between the global ones (`STAGE_BASE`) and the stage's own, so that the
+    stage's entry wins over the family string (Hydra keeps the last value of a key)."""
+    ov = config.get("overrides", {}) or {}
+    return " ".join(e for e in (ov.get(s, "") or "" for s in stages) if e)
+
+
 def stage_enabled(name):
     return bool(config.get("stages", {}).get(name, False))
 

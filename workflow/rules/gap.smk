@@ -81,7 +81,7 @@ rule gap_cloth_suite:
         CONDA_ENV
     resources:
         mem_mb=1200,  # measured peak RSS 646 MB (the 11 public cases, 2026-12-02; 502-597 MB in smaller runs)
-        runtime=30,  # the 11 public cases: 733 CPU-s with the footprints (2026-12-02)
+        runtime=60,  # minutes: the 14 cases 1906 CPU-s in one process (4 Dec 2026; 733 CPU-s for 11 on 2 Dec)
     shell:
         "python -m vidsim.cli.gap_cloth_suite paths.out={params.out} {params.only} {params.extra} > {log} 2>&1"
 
@@ -145,8 +145,8 @@ rule diagnose_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=1200,  # the same diagnosis as a cloth suite case (suite peak RSS 654 MB)
-        runtime=20,
+        mem_mb=1200,  # the same diagnosis as a cloth suite case (suite peak RSS 654 MB; full setting 902 MB)
+        runtime=60,  # minutes: quick 1-4.5 CPU-min; full setting linen 17 CPU-min, satin about twice that
     shell:
         "python -m vidsim.cli.diagnose_cloth paths.footage=$(dirname {input.meta}) gap.paths.fit={input.params} "
         "paths.out={params.out} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"

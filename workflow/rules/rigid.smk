@@ -110,7 +110,7 @@ rule fit_rigid:
         runtime=20,
     shell:
         "python -m vidsim.cli.fit_rigid paths.footage={params.footage} rigid.paths.masks={input.masks} "
-        "paths.out={params.out} rigid.overlay=mp4 {params.case} {params.extra} > {log} 2>&1"
+        "paths.out={params.out} {params.case} {params.extra} rigid.overlay=mp4 > {log} 2>&1"  # the declared overlay.mp4
 
 
 rule score_rigid:
