@@ -261,17 +261,20 @@ class ClothObjective:
     def fingerprint(self) -> str:
         """What decides a score, hashed (:func:`vidsim.optim.cache.fingerprint`): every trial's
         footage features, times, corner paths, camera, projector, size, density and skirt (not its
-        label), the parameter space, the fixed values, the model and feature settings, alpha and
-        the simulator's kernel version. The fits' evaluation logs carry it, so a rerun after any
-        of these changed does not replay the old scores."""
+        label), the parameter space, the fixed values, the model and feature settings, alpha, the
+        simulator's kernel version and the package's source digest (``vidsim.SOURCE_DIGEST``: the
+        renderer, the angle maps and the metric decide a score too, and a change to any of them
+        must not replay scores of the old code). The fits' evaluation logs carry it, so a rerun
+        after any of these changed does not replay the old scores."""
         from dataclasses import fields as dc_fields
 
+        import vidsim
         from vidsim.cloth.integrate import KERNEL_VERSION
         from vidsim.optim.cache import fingerprint
 
         trials = [{f.name: getattr(tr, f.name) for f in dc_fields(tr) if f.name != "name"} for tr in self.trials]
         return fingerprint("ClothObjective", trials, self.space, self.fixed, self.model, self.features, self.alpha,
-                           KERNEL_VERSION)
+                           KERNEL_VERSION, vidsim.SOURCE_DIGEST)
 
     @property
     def meshes(self) -> list:

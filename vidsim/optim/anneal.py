@@ -22,6 +22,8 @@ from typing import Callable
 
 import numpy as np
 
+from vidsim.optim import FAILED_SCORE
+
 
 @dataclass
 class AnnealConfig:
@@ -65,8 +67,12 @@ class AnnealConfig:
             raise ConfigError(f"{p}.evals_per_T must be >= 1, got {self.evals_per_T}")
         if self.reset_factor <= 1:
             raise ConfigError(f"{p}.reset_factor must be > 1, got {self.reset_factor}")
-        if not 0 < self.step <= 1:
-            raise ConfigError(f"{p}.step must be in (0, 1], got {self.step}")
+        if not 0 < self.step <= 0.5:
+            # a larger step puts a start vertex beyond the cube from a centre near 0.5: the score would
+            # be the clipped point's while the simplex keeps the unclipped one
+            raise ConfigError(f"{p}.step must be in (0, 0.5], got {self.step}")
+        if isinstance(self.seed, bool) or int(self.seed) != self.seed or self.seed < 0:
+            raise ConfigError(f"{p}.seed must be a whole number >= 0, got {self.seed!r}")
         if not 0 < self.min_step <= self.step:
             raise ConfigError(f"{p}.min_step must be in (0, step = {self.step}], got {self.min_step}")
 
@@ -113,6 +119,8 @@ def anneal(f: Callable[[np.ndarray], float], u0: np.ndarray, cfg: AnnealConfig,
             raise _Budget
         u = np.clip(u, 0.0, 1.0)
         y = float(f(u))
+        if not math.isfinite(y):  # a NaN vertex would never be replaced nor shrunk away
+            y = FAILED_SCORE
         trace.append(y)
         if y < state["best_f"]:
             state["best_f"], state["best_u"] = y, u.copy()

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import itertools
+import math
 from typing import Callable
 
 import numpy as np
+
+from vidsim.optim import FAILED_SCORE
 
 
 def grid_points(dims: list[int], levels: int = 4, n: int | None = None, base: np.ndarray | None = None) -> np.ndarray:
@@ -27,7 +30,8 @@ def grid_search(f: Callable[[np.ndarray], float], points: np.ndarray,
     """Evaluate ``f`` on every point; return (values (m,), best point (n,))."""
     vals = np.empty(len(points))
     for i, p in enumerate(points):
-        vals[i] = f(p)
+        y = float(f(p))
+        vals[i] = y if math.isfinite(y) else FAILED_SCORE  # argmin would pick a NaN
         if progress is not None:
             progress(i + 1, float(vals[: i + 1].min()))
     return vals, points[int(np.argmin(vals))]

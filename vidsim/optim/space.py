@@ -82,10 +82,16 @@ class Space:
             missing = [k for k in ("lo", "hi") if k not in spec]
             if missing:
                 raise ConfigError(f"parameter '{name}': missing {missing} (expected lo, hi and optionally log)")
+            if any(isinstance(spec[k], bool) for k in ("lo", "hi")):
+                raise ConfigError(f"parameter '{name}': lo and hi must be numbers, got {spec['lo']!r}, {spec['hi']!r}")
             try:
                 lo, hi = float(spec["lo"]), float(spec["hi"])
             except (TypeError, ValueError):
                 raise ConfigError(f"parameter '{name}': lo and hi must be numbers, got {spec['lo']!r}, "
                                   f"{spec['hi']!r}") from None
-            axes.append(Axis(name, lo, hi, bool(spec.get("log", False))))
+            log = spec.get("log", False)
+            if not isinstance(log, bool):
+                # bool("no") and bool("false") are True: a string here would silently keep a log axis
+                raise ConfigError(f"parameter '{name}': log must be true or false, got {log!r}")
+            axes.append(Axis(name, lo, hi, log))
         return cls(tuple(axes))

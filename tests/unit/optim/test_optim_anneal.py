@@ -147,3 +147,52 @@ def test_bad_schedules_and_log_values_name_what_is_wrong():
         sp.to_unit(np.array([1.0, np.nan]))
     # a linear axis takes zero and negatives (outside the box maps outside [0, 1])
     assert np.allclose(sp.to_unit(np.array([-5.0, 1e-2])), [-0.5, 1.0])
+
+
+def test_nan_without_a_cache_is_a_bad_score_for_anneal_and_grid():
+    """The optimisers map a non-finite value to FAILED_SCORE themselves: without an EvalCache a NaN
+    in the starting simplex froze the search (never replaced, never shrunk away) and grid_search
+    returned the NaN point as its best."""
+    def nan_left(u):
+        return float("nan") if u[0] < 0.3 else float(np.sum((u - [0.6, 0.4]) ** 2))
+
+    r = anneal(nan_left, np.array([0.31, 0.5]), AnnealConfig(budget=300, seed=0, step=0.15))
+    assert FAILED_SCORE in r.trace and not np.any(np.isnan(r.trace))
+    assert r.best_f < 1e-3  # from 0.094 at the start
+    vals, best = grid_search(nan_left, grid_points([0, 1], 4))
+    assert not np.any(np.isnan(vals)) and best[0] > 0.3
+
+
+def test_bad_seed_step_and_space_types_are_refused_by_name():
+    with pytest.raises(ConfigError, match=r"cloth\.fit\.seed"):
+        AnnealConfig(seed=-1, name="cloth.fit")
+    with pytest.raises(ConfigError, match=r"step must be in \(0, 0\.5\]"):
+        AnnealConfig(step=0.6)
+    # Hydra passes `log=no` as the string "no", and bool("no") is True
+    for bad in ("no", "false", 0):
+        with pytest.raises(ConfigError, match=r"'bend': log must be true or false"):
+            Space.from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": bad}})
+    with pytest.raises(ConfigError, match="lo and hi must be numbers"):
+        Space.from_config({"bend": {"lo": True, "hi": 2.0}})
+    assert Space.from_config({"bend": {"lo": 1e-7, "hi": 1e-4, "log": True}}).axes[0].log
+
+
+def test_cmaes_spends_exactly_its_budget_restarting_after_an_early_stop():
+    """CMA-ES on a function with a flat region stopped after 24 of 600 evaluations (cma's tolfun);
+    now it restarts from its best point until the budget is spent. Fixed seeds reproduce the run,
+    and a smooth quadratic inside the cube is solved."""
+    from vidsim.optim.cmaes import cmaes
+
+    def flat_then_bowl(u):  # flat (all "failed") unless near the bowl at 0.8
+        d = float(np.sum((u - 0.8) ** 2))
+        return FAILED_SCORE if d > 0.05 else d
+
+    stops: list = []
+    u, fb, tr = cmaes(flat_then_bowl, np.full(3, 0.2), 600, sigma0=0.05, seed=3, stops=stops)
+    assert len(tr) == 600 and len(stops) >= 2 and ("tolfun" in stops[0] or "tolflatfitness" in stops[0])
+    u2, fb2, tr2 = cmaes(flat_then_bowl, np.full(3, 0.2), 600, sigma0=0.05, seed=3)
+    assert np.array_equal(tr, tr2) and np.array_equal(u, u2)
+    uq, fq, trq = cmaes(lambda v: float(np.sum((v - [0.3, 0.7, 0.5]) ** 2)), np.full(3, 0.5), 400, seed=0)
+    assert len(trq) == 400 and fq < 1e-10 and np.all((uq >= 0) & (uq <= 1))
+    with pytest.raises(ConfigError, match="seed"):
+        cmaes(flat_then_bowl, np.full(3, 0.2), 10, seed=-1)
