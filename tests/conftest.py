@@ -26,3 +26,39 @@ def shared_data():
     if not d.is_dir():
         pytest.skip(f"real data folder {d} is absent")
     return d
+
+
+def assert_footage_holds_no_truth(folder) -> None:
+    """No file of a synthetic footage folder carries truth entities or recordings (the reality stages
+    keep the truth, their Rerun recordings and the true masks beside the folder; a real recording has
+    none). ``meta.yaml`` may *say* that its initial guess was made from the truth; it may not hold it."""
+    from pathlib import Path
+
+    files = [f for f in Path(folder).rglob("*") if f.is_file()]
+    assert files, f"{folder} is empty"
+    for f in files:
+        assert f.suffix != ".rrd", f"{f}: a recording inside the footage folder"
+        assert b"truth/" not in f.read_bytes().lower(), f"{f} holds truth entities"
+
+
+class truth_hidden:
+    """Context manager: the truth files beside a footage folder (``<folder>.truth*``) are moved away
+    while estimator stages run, so a stage that read them fails instead of passing."""
+
+    def __init__(self, folder) -> None:
+        from pathlib import Path
+
+        self.folder = Path(folder)
+        self.moved: list = []
+
+    def __enter__(self) -> "truth_hidden":
+        for f in self.folder.parent.glob(f"{self.folder.name}.truth*"):
+            dest = f.with_name(f".hidden.{f.name}")
+            f.rename(dest)
+            self.moved.append((dest, f))
+        assert self.moved, f"no truth beside {self.folder} to hide"
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for dest, f in self.moved:
+            dest.rename(f)

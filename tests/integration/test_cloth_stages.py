@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import assert_footage_holds_no_truth, truth_hidden
+
 ROOT = Path(__file__).resolve().parents[2]
 FAST = ["log.rerun=false", "log.progress=false"]
 
@@ -56,7 +58,9 @@ def test_twin_fit_and_resume_by_replay(twin_footage):
             *[f"+cloth.fit.fixed.{k}={v}" for k, v in others.items()],
             "cloth.fit.grid_params=[stretch]", "cloth.fit.grid_levels=4", "cloth.fit.budget=8", "cloth.fit.evals_per_T=4",
             "cloth.fit.step=0.1"]
-    _run("vidsim.cli.cloth_fit", *args)
+    assert_footage_holds_no_truth(fp)
+    with truth_hidden(fp):  # the estimator must not need it
+        _run("vidsim.cli.cloth_fit", *args)
     fit = yaml.safe_load((out / "fit.yaml").read_text())
     assert 0 < fit["n_new_simulations"] <= fit["n_evals"]  # repeats within a run are cache hits too
     # stretch within a factor 2 of the twin's truth (300 N/m) from a 20-4000 N/m box
@@ -101,10 +105,11 @@ def test_diagnose_cloth_stage_on_twin_footage(twin_footage):
         fit = res / f"{name}_fit.yaml"
         fit.write_text(yaml.safe_dump({"params": params, "estimated": ["stretch"]}))
         out = res / "gap" / f"cloth_twin_{name}"
-        log = _run("vidsim.cli.diagnose_cloth", f"paths.results={res}", f"paths.footage={fp}", f"gap.paths.fit={fit}",
-                   f"paths.out={out}", "cloth.model.resolution=10", "cloth.model.settle_s=0.5",
-                   "cloth.model.frame_stride=2", "+gap.cloth.diagnose.top_k=1", "+gap.cloth.diagnose.pairs=false",
-                   "+gap.cloth.diagnose.candidates=[wind,time_offset,lens_k1]")
+        with truth_hidden(fp):
+            log = _run("vidsim.cli.diagnose_cloth", f"paths.results={res}", f"paths.footage={fp}", f"gap.paths.fit={fit}",
+                       f"paths.out={out}", "cloth.model.resolution=10", "cloth.model.settle_s=0.5",
+                       "cloth.model.frame_stride=2", "+gap.cloth.diagnose.top_k=1", "+gap.cloth.diagnose.pairs=false",
+                       "+gap.cloth.diagnose.candidates=[wind,time_offset,lens_k1]")
         assert "diagnose_cloth cloth_twin_exp1:" in log
         d = json.loads((out / "diagnosis.json").read_text())
         assert (out / "diagnosis.png").is_file() and (out / "diagnosis.rrd").is_file()

@@ -12,6 +12,8 @@ import numpy as np
 import pytest
 import yaml
 
+from conftest import assert_footage_holds_no_truth, truth_hidden
+
 EDIT = {
     "description": "test: a second boat in a 64 px stream",
     "footage": "synthetic:stream_boat",
@@ -38,9 +40,19 @@ def stream(tmp_path_factory):
     r = _cli("reality_fluid", f"paths.results={res}", f"paths.out={foot}", "fluid.reality.scene=stream_boat",
              "fluid.reality.size=64", "fluid.reality.n_frames=24", "fluid.reality.warmup=40")
     assert r.returncode == 0, r.stderr[-2000:]
+    assert_footage_holds_no_truth(foot)  # the true flow goes beside, into .truth.* and .reality.rrd
+    assert (res / "footage" / "fluid_stream_boat.reality.rrd").is_file()
     flow = res / "fluid" / "flow" / "fluid_stream_boat"
     r = _cli("fluid_flow", f"paths.results={res}", f"paths.footage={foot}", f"paths.out={flow}")
     assert r.returncode == 0, r.stderr[-2000:]
+    # the stage scores against the truth when it finds it; its estimate must not depend on it
+    blind = res / "fluid" / "flow" / "blind"
+    with truth_hidden(foot):
+        r = _cli("fluid_flow", f"paths.results={res}", f"paths.footage={foot}", f"paths.out={blind}")
+    assert r.returncode == 0, r.stderr[-2000:]
+    with np.load(flow / "flow.npz") as a, np.load(blind / "flow.npz") as b:
+        assert set(a.files) == set(b.files) and all(np.array_equal(a[k], b[k]) for k in a.files)
+    assert "epe_px" not in json.loads((blind / "summary.json").read_text())
     return res, foot, flow
 
 

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from vidsim.io.paths import REPO_ROOT
+from conftest import assert_footage_holds_no_truth, truth_hidden
 
 # a shorter clip than the study's (30 throw frames, 8 background frames), full 640x480, one start
 SCENE = ["rigid.reality.n_frames=30", "rigid.reality.n_background=8", "log.progress=false", "log.rerun=false"]
@@ -57,10 +58,13 @@ def test_throw_through_the_stages_is_recovered(throw):
     meta = yaml.safe_load((foot / "meta.yaml").read_text())
     assert "initial_guess" in meta and "stand-in for the user's rough guess" in meta["initial_guess_protocol"]
     assert not {"omega_world", "effects", "camera"} & set(meta)
-    _ok(_cli("segment", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE))
-    with np.load(out / "masks.npz") as z:
-        assert z["masks"].dtype == bool and z["masks"].shape == (38, 480, 640) and z["times"].shape == (38,)
-    _ok(_cli("fit_rigid", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE, *FIT))
+    assert (res / "footage" / "rigid_t7.reality.rrd").is_file()
+    assert_footage_holds_no_truth(foot)
+    with truth_hidden(foot):  # the estimator stages must not need it
+        _ok(_cli("segment", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE))
+        with np.load(out / "masks.npz") as z:
+            assert z["masks"].dtype == bool and z["masks"].shape == (38, 480, 640) and z["times"].shape == (38,)
+        _ok(_cli("fit_rigid", res, f"paths.footage={foot}", f"paths.out={out}", *SCENE, *FIT))
     for f in ("fit.yaml", "overlay.mp4", "errors.png", "rigid.rrd"):
         assert (out / f).is_file(), f
     assert not (out / ".fit_rigid.stages.jsonl").exists()  # the checkpoint goes once fit.yaml is written

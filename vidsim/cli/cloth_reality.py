@@ -30,7 +30,7 @@ from vidsim.clothfit.film import ClothFilmError, FilmSettings, film_cloth, rotat
 from vidsim.clothfit.rig import SkirtBody
 from vidsim.config import camera_from_config, projector_from_config, to_plain
 from vidsim.io.atomic import replace_dir
-from vidsim.io.footage import read_calibration, truth_path, write_footage, write_truth
+from vidsim.io.footage import read_calibration, recording_path, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.cloth import (
@@ -114,7 +114,7 @@ def run(cfg: DictConfig) -> None:
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     prog = Progress(len(frames), "reality_cloth log", enabled=cfg.log.progress)
-    with make_logger(tmp / "reality.rrd", "vidsim.reality_cloth", cfg.log.rerun) as lg:
+    with make_logger(recording_path(out), "vidsim.reality_cloth", cfg.log.rerun) as lg:
         for i, img in enumerate(frames):
             lg.set_frame(i)
             lg.image("footage/camera/image", img)

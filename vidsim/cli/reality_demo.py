@@ -16,7 +16,7 @@ from omegaconf import DictConfig
 from vidsim.cli._app import stage_app
 from vidsim.config import camera_from_config, to_plain
 from vidsim.io.atomic import replace_dir
-from vidsim.io.footage import read_calibration, truth_path, write_footage, write_truth
+from vidsim.io.footage import read_calibration, recording_path, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.demo import box_mesh, demo_motion
@@ -47,7 +47,7 @@ def run(cfg: DictConfig) -> None:
     # staging folder, moved into place at the end: a killed stage leaves no half-written footage
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
-    with make_logger(tmp / "reality.rrd", "vidsim.reality_demo", cfg.log.rerun) as lg:
+    with make_logger(recording_path(out), "vidsim.reality_demo", cfg.log.rerun) as lg:
         for i, t in enumerate(motion.times):
             items = []
             if motion.visible[i]:

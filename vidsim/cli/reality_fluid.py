@@ -20,7 +20,7 @@ from vidsim.errors import ConfigError, VidsimError
 from vidsim.fluid.footage import SYNTHETIC_SCENES, nominal_camera
 from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import replace_dir, write_npz
-from vidsim.io.footage import truth_path, write_footage, write_truth
+from vidsim.io.footage import recording_path, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.report.figures import contact_sheet
@@ -52,7 +52,7 @@ def run(cfg: DictConfig) -> None:
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     prog = Progress(T, "reality_fluid frames", enabled=cfg.log.progress)
-    with make_logger(tmp / "reality.rrd", "vidsim.reality_fluid", cfg.log.rerun) as lg:
+    with make_logger(recording_path(out), "vidsim.reality_fluid", cfg.log.rerun) as lg:
         step = max(4, H // 16)
         for i in range(T):
             lg.set_frame(i)

@@ -2,7 +2,7 @@
 
 ``python -m vidsim.cli.reality_rigid rigid.seed=101 effects.dynamics.air_drag=1
 paths.out=results/footage/rigid_101``. Writes the footage folder (frames, times.csv,
-calibration.yaml, meta.yaml, contact_sheet.png, reality.rrd) and, BESIDE it, the truth
+calibration.yaml, meta.yaml, contact_sheet.png) and, BESIDE it, the Rerun recording (``<out>.reality.rrd``: footage beside true masks) and the truth
 (``<out>.truth.yaml``: initial state, gravity angles, effects, true camera, true capture times)
 and the ground-truth silhouettes (``<out>.truth_masks.npz``: ``masks`` (N, H, W) bool, ``times``).
 
@@ -27,7 +27,7 @@ from vidsim.cli._rigid import log_image, plain
 from vidsim.config import to_plain
 from vidsim.config.rigid import validate_rigid
 from vidsim.io.atomic import replace_dir, write_npz
-from vidsim.io.footage import truth_path, write_footage, write_truth
+from vidsim.io.footage import recording_path, truth_path, write_footage, write_truth
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.reality.rigid import RigidEffects, RigidRealityConfig, make_throw
@@ -68,7 +68,7 @@ def run(cfg: DictConfig) -> None:
                   titles=[f"frame {i + n_bg}" for i in np.linspace(0, len(th.frames) - n_bg - 1,
                                                                     min(8, len(th.frames) - n_bg)).round().astype(int)])
     prog.update(note="footage written")
-    with make_logger(tmp / "reality.rrd", "vidsim.reality_rigid", cfg.log.rerun) as lg:
+    with make_logger(recording_path(out), "vidsim.reality_rigid", cfg.log.rerun) as lg:
         lg.camera("world/camera", th.camera)
         for i, img in enumerate(th.frames):
             lg.set_frame(i)

@@ -16,6 +16,7 @@ reality generator and is read only by scoring stages (:func:`read_truth`).
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,6 +62,14 @@ def truth_path(folder: str | os.PathLike) -> Path:
     """Where the truth of a synthetic footage folder lives (beside it, never inside)."""
     folder = Path(folder)
     return folder.parent / f"{folder.name}.truth.yaml"
+
+
+def recording_path(folder: str | os.PathLike) -> Path:
+    """Where the reality stages' Rerun recording of a synthetic footage folder lives: beside it, like
+    the truth, because it shows the truth (true masks, meshes, flow) next to the footage; a footage
+    folder holds only what a real recording would."""
+    folder = Path(folder)
+    return folder.parent / f"{folder.name}.reality.rrd"
 
 
 # --------------------------------------------------------------------------- writing
@@ -188,6 +197,16 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
+#: header names ``times.csv`` may give its time column (seconds) when it has several columns
+TIME_COLUMNS = frozenset({"time_s", "time", "t", "timestamp_s", "seconds"})
+
+
+def _natural_key(p: Path) -> list:
+    """Sort key that orders numbers by value: frame2.png before frame10.png (unpadded names, as
+    ffmpeg's %d writes them, sort as text 0, 1, 10, 11, 2, ...)."""
+    return [int(c) if c.isdigit() else c for c in re.split(r"(\d+)", p.name)]
+
+
 def read_times(path: str | os.PathLike, n: int, prefix: bool = False) -> np.ndarray:
     """Read ``times.csv`` (header line, one time per frame, seconds) and check monotonicity.
 
@@ -201,8 +220,31 @@ def read_times(path: str | os.PathLike, n: int, prefix: bool = False) -> np.ndar
     except UnicodeDecodeError:
         raise FootageError(f"{path}: not a text file (expected a header line and one time per line)") from None
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    if not lines:
+        raise FootageError(f"{path}: empty (expected a header line such as 'time_s', then one time per frame)")
+    header = [h.strip().lower() for h in lines[0].split(",")]
     try:
-        t = np.array([float(x.split(",")[0]) for x in lines[1:]])
+        float(header[0])
+    except ValueError:
+        pass
+    else:
+        raise FootageError(f"{path}: the first line {lines[0]!r} is a number, not a header: expected a header line "
+                           f"such as 'time_s' (the first time would be dropped)")
+    if len(header) == 1:
+        col = 0
+    else:
+        named = [i for i, h in enumerate(header) if h in TIME_COLUMNS]
+        if len(named) != 1:
+            raise FootageError(f"{path}: {len(header)} columns {header} and {'none' if not named else 'several'} named "
+                               f"as the time in seconds (expected one of {sorted(TIME_COLUMNS)})")
+        col = named[0]
+    rows = [ln.split(",") for ln in lines[1:]]
+    for k, r in enumerate(rows):
+        if len(r) != len(header):
+            raise FootageError(f"{path}: line {k + 2} has {len(r)} fields but the header {lines[0]!r} has "
+                               f"{len(header)} (a decimal comma? times are written with a decimal point)")
+    try:
+        t = np.array([float(r[col]) for r in rows])
     except ValueError as e:
         raise FootageError(f"{path}: non-numeric time value ({e})") from e
     if prefix and t.size >= n:
@@ -289,10 +331,17 @@ def read_footage(folder: str | os.PathLike, required_meta: tuple[str, ...] = (),
     folder = Path(folder)
     if not folder.is_dir():
         raise FootageError(f"{folder}: footage folder is missing")
-    videos = [p for p in sorted(folder.iterdir()) if p.suffix.lower() in VIDEO_EXTS]
+    videos = [p for p in sorted(folder.iterdir()) if p.suffix.lower() in VIDEO_EXTS and not p.name.startswith(".")]
+    if len(videos) > 1:
+        named = [p for p in videos if p.stem == "video"]
+        if len(named) != 1:
+            raise FootageError(f"{folder}: several video files ({', '.join(p.name for p in videos)}); keep one, or name "
+                               f"the one to read video.<ext>")
+        videos = named
     fdir = folder / FRAME_DIR
     if fdir.is_dir():
-        files = sorted(p for p in fdir.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"))
+        files = sorted((p for p in fdir.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")),
+                       key=_natural_key)
         if not files:
             raise FootageError(f"{fdir}: contains zero frames")
         times = read_times(folder / "times.csv", len(files))

@@ -84,7 +84,7 @@ rule reality_cloth:
             category="Cloth",
             subcategory="footage",
         ),
-        rrd=f"{RESULTS}/footage/cloth_{{fabric}}_{{trial}}/reality.rrd",
+        rrd=f"{RESULTS}/footage/cloth_{{fabric}}_{{trial}}.reality.rrd",
     params:
         out=get_out_dir,
         base=STAGE_BASE,
@@ -350,7 +350,7 @@ rule reality_skirt:
             category="Cloth",
             subcategory="footage",
         ),
-        rrd=f"{RESULTS}/footage/skirt_{{fabric}}/reality.rrd",
+        rrd=f"{RESULTS}/footage/skirt_{{fabric}}.reality.rrd",
     params:
         out=get_out_dir,
         base=STAGE_BASE,

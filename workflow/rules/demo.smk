@@ -19,7 +19,7 @@ rule reality_demo:
             category="Footage",
             subcategory="{scene}",
         ),
-        rrd=f"{RESULTS}/footage/{{scene}}/reality.rrd",
+        rrd=f"{RESULTS}/footage/{{scene}}.reality.rrd",
     params:
         out=get_out_dir,
         extra=stage_overrides("reality_demo"),

@@ -66,7 +66,7 @@ rule reality_fluid:
             category="Fluid",
             subcategory="footage",
         ),
-        rrd=f"{RESULTS}/footage/fluid_{{scene}}/reality.rrd",
+        rrd=f"{RESULTS}/footage/fluid_{{scene}}.reality.rrd",
     wildcard_constraints:
         scene="[a-z_]+",
     params:

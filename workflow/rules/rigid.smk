@@ -31,7 +31,7 @@ rule reality_rigid:
             category="Rigid bodies",
             subcategory="{case}",
         ),
-        rrd=f"{RESULTS}/footage/rigid_{{case}}/reality.rrd",
+        rrd=f"{RESULTS}/footage/rigid_{{case}}.reality.rrd",
     params:
         out=get_out_dir,
         case=rigid_case_overrides,
