@@ -65,12 +65,14 @@ class ProjectorConfig:
 class DynamicsEffects:
     """Physical effects reality can switch on (0 = off). The models never contain them by default."""
 
-    air_drag: float = 0.0  # multiplier of the ambient air density (1 = air at 1.2 kg/m^3)
+    # rigid reality: multiplier of MuJoCo's blunt, slender and Kutta fluid coefficients (1 = its defaults); the
+    # air itself (1.2 kg/m^3, with its added mass) is on whenever air_drag, angular_drag or magnus is above 0
+    air_drag: float = 0.0
     angular_drag: float = 0.0  # multiplier of MuJoCo's rotational fluid drag
     magnus: float = 0.0  # multiplier of the Magnus lift coefficient
     wind: list[float] = _v3(0.0, 0.0, 0.0)  # m/s, world frame
     com_offset: list[float] = _v3(0.0, 0.0, 0.0)  # m, body frame, vs. what meta.yaml says
-    gravity_tilt_deg: float = 0.0
+    gravity_tilt_deg: float = 0.0  # not made by the rigid reality (refused there when not 0)
 
 
 @dataclass
@@ -81,7 +83,7 @@ class ImagingEffects:
     exposure_s: float = 0.0  # finite exposure -> motion blur
     rolling_shutter_s: float = 0.0  # readout time top -> bottom row
     time_jitter_s: float = 0.0  # std. dev. of frame-time jitter
-    time_offset_s: float = 0.0  # constant offset of the frame clock
+    time_offset_s: float = 0.0  # constant offset of the frame clock (demo scene; refused by the rigid reality)
 
 
 @dataclass

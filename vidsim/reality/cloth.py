@@ -41,6 +41,7 @@ at the motion's centre height. Units: metres, seconds, kilograms, newtons.
 from __future__ import annotations
 
 import copy
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -239,7 +240,52 @@ def resolve_effects(effects: dict[str, Any] | None) -> dict[str, dict[str, Any]]
             if k not in out[name]:
                 raise ClothRealityError(f"unknown key {k!r} in effects['{name}']; expected {sorted(out[name])}")
             out[name][k] = v
+    _check_effect_values(out)
     return out
+
+
+def _check_effect_values(eff: dict[str, dict[str, Any]]) -> None:
+    """Refuse effect values that are not physical or not of the expected kind, naming the key, before
+    any simulation (a string ``on: "false"`` counted as on; a negative air density fed energy in)."""
+
+    def num(name: str, key: str, lo: float | None = 0.0, hi: float | None = None, lo_open: bool = False) -> None:
+        v = eff[name][key]
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        if ok and lo is not None:
+            ok = v > lo if lo_open else v >= lo
+        if ok and hi is not None:
+            ok = v <= hi
+        if not ok:
+            rng = (f"{'>' if lo_open else '>='} {lo}" if lo is not None else "finite") + (f" and <= {hi}" if hi is not None else "")
+            raise ClothRealityError(f"effects['{name}']['{key}'] must be a number {rng}, got {v!r}")
+
+    for name, spec in eff.items():
+        if not isinstance(spec["on"], bool):
+            raise ClothRealityError(f"effects['{name}']['on'] must be true or false, got {spec['on']!r}")
+    num("air_drag", "density")
+    vel = eff["wind"]["velocity"]
+    try:
+        ok = np.asarray(vel, dtype=float).shape == (3,) and bool(np.all(np.isfinite(np.asarray(vel, dtype=float))))
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ClothRealityError(f"effects['wind']['velocity'] must be 3 finite numbers (m/s), got {vel!r}")
+    num("wind", "gust")
+    num("wind", "gust_frequency")
+    num("anisotropy", "warp")
+    num("anisotropy", "weft")
+    num("strain_stiffening", "c3")
+    num("strain_stiffening", "stiffness")
+    for key in ("drop", "lag", "jitter"):
+        num("grip_slip", key)
+    num("gravity_tilt", "degrees", 0.0, 90.0)
+    num("gravity_tilt", "azimuth_deg", None)
+    num("bending_plasticity", "yield_strain", 0.0, lo_open=True)
+    num("mocap_noise", "sigma")
+    if eff["wind"]["on"] and not eff["air_drag"]["on"]:
+        # the wind acts through the air model, whose density air_drag holds: "wind without drag" is not a thing
+        raise ClothRealityError("effects['wind'] is on but effects['air_drag'] is off: the wind acts through the air "
+                                "(its density is air_drag's), so switch air_drag on too")
 
 
 # --------------------------------------------------------------------------------------- result
@@ -442,8 +488,17 @@ def _grid_edges(x0: np.ndarray, edges: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return edges[horiz], edges[vert]
 
 
-def _edge_forces(x: np.ndarray, edges: np.ndarray, rest: np.ndarray, k_lin: float, k_cub: float) -> np.ndarray:
-    """Explicit edge springs, tension ``k_lin eps + k_cub eps^3`` (N; eps = engineering strain)."""
+def _border_halves(coord: np.ndarray) -> np.ndarray:
+    """(E,) strip-width factors of grid edges from the coordinate across them: 1/2 on the swatch's two
+    border lines, 1 inside (n lines at spacing h carry strips of h, the two borders h/2 each)."""
+    lo, hi = coord.min(), coord.max()
+    tol = 1e-6 * max(hi - lo, 1e-9)
+    return np.where((np.abs(coord - lo) < tol) | (np.abs(coord - hi) < tol), 0.5, 1.0)
+
+
+def _edge_forces(x: np.ndarray, edges: np.ndarray, rest: np.ndarray, k_lin, k_cub) -> np.ndarray:
+    """Explicit edge springs, tension ``k_lin eps + k_cub eps^3`` (N; eps = engineering strain;
+    ``k_lin``, ``k_cub``: scalars or (E,) per edge)."""
     d = x[edges[:, 1]] - x[edges[:, 0]]
     ln = np.linalg.norm(d, axis=1)
     eps = ln / rest - 1.0
@@ -572,7 +627,9 @@ def simulate_swatch(
     weft, warp = _grid_edges(x0, m.flex_edge.astype(np.int64))
     rest_weft = np.linalg.norm(x0[weft[:, 1]] - x0[weft[:, 0]], axis=1)
     rest_warp = np.linalg.norm(x0[warp[:, 1]] - x0[warp[:, 0]], axis=1)
-    air_on = bool(eff["air_drag"]["on"] or eff["wind"]["on"])
+    strip_warp = _border_halves(x0[warp[:, 0], 0])  # warp edges run along z: their strips lie across x
+    strip_weft = _border_halves(x0[weft[:, 0], 2])
+    air_on = bool(eff["air_drag"]["on"])  # wind needs it (resolve_effects)
     rho = float(eff["air_drag"]["density"])
     free = np.ones(len(x0), bool)
     free[ic] = False
@@ -591,11 +648,12 @@ def simulate_swatch(
         if air_on:
             force += air_forces(x, vel_of(d), faces, _wind_at(eff, t, gust_phases), rho,
                                 f["drag"], f["lift"], f["friction"])
-        # membrane stiffness (N/m) -> tension per edge: each grid edge carries a strip of width h
+        # membrane stiffness (N/m) -> tension per edge: each grid edge carries a strip of width h, the
+        # edges along the swatch's border h/2 (so the strips add up to the swatch's width)
         if k_warp > 0 or k_cub > 0:
-            force += _edge_forces(x, warp, rest_warp, k_warp * h, k_cub * h)
+            force += _edge_forces(x, warp, rest_warp, k_warp * h * strip_warp, k_cub * h * strip_warp)
         if k_weft > 0 or k_cub > 0:
-            force += _edge_forces(x, weft, rest_weft, k_weft * h, k_cub * h)
+            force += _edge_forces(x, weft, rest_weft, k_weft * h * strip_weft, k_cub * h * strip_weft)
         d.xfrc_applied[fbody, :3] = force[free]
 
     out, true_corners, failure, wall = _drive(
@@ -854,7 +912,8 @@ def simulate_skirt(
     f = _check_fabric(fabric)
     mot = _check_skirt_motion(motion)
     eff = resolve_effects(effects)
-    for name in ("grip_slip", "anisotropy", "strain_stiffening"):
+    for name in ("grip_slip", "anisotropy", "strain_stiffening", "mocap_noise"):
+        # mocap_noise: the skirt's known body motion is handed to the model exactly (not noised)
         if eff[name]["on"]:
             raise ClothRealityError(f"effect {name!r} is not available for the skirt")
     shp = dict(SKIRT_SHAPE if shape is None else shape)
@@ -914,7 +973,7 @@ def simulate_skirt(
     free = np.ones(len(x0), bool)
     free[top] = False
     fbody = vbody[free]
-    air_on = bool(eff["air_drag"]["on"] or eff["wind"]["on"])
+    air_on = bool(eff["air_drag"]["on"])  # wind needs it (resolve_effects)
     rho = float(eff["air_drag"]["density"])
     leg_mocap = [int(m.body_mocapid[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"leg{k}")]) for k in range(2)]
     # mocap leg bodies: geoms are placed in world coordinates at t = 0; move the body by the

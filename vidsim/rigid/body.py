@@ -50,11 +50,20 @@ class BoxBody:
     symmetries: np.ndarray
 
     def __post_init__(self) -> None:
-        self.centers = np.asarray(self.centers, float).reshape(-1, 3)
-        self.half_sizes = np.asarray(self.half_sizes, float).reshape(-1, 3)
-        self.inertia = np.asarray(self.inertia, float).reshape(3, 3)
-        self.symmetries = np.asarray(self.symmetries, float).reshape(-1, 3, 3)
-        self.mass = float(self.mass)
+        for name, shape in (("centers", (-1, 3)), ("half_sizes", (-1, 3)), ("inertia", (3, 3)), ("symmetries", (-1, 3, 3))):
+            v = getattr(self, name)
+            try:
+                arr = np.asarray(v, float)
+                arr = arr.reshape(shape)
+            except (TypeError, ValueError):
+                want = "a 3x3 matrix (the full tensor in body axes, not 3 principal moments)" if name == "inertia" \
+                    else f"numbers in groups of {shape[1:]}"
+                raise RigidBodyError(f"body: '{name}' must be {want}, got {np.shape(v) if not isinstance(v, str) else repr(v)}") from None
+            setattr(self, name, arr)
+        try:
+            self.mass = float(self.mass)
+        except (TypeError, ValueError):
+            raise RigidBodyError(f"body: 'mass' must be a number (kg), got {self.mass!r}") from None
         if self.centers.shape != self.half_sizes.shape:
             raise RigidBodyError(
                 f"body: 'centers' {self.centers.shape} and 'half_sizes' {self.half_sizes.shape} must match")

@@ -126,10 +126,12 @@ def test_air_drag_damps_the_swing():
 def test_effects_switch_on_and_change_the_motion(effects):
     small = {"resolution": 9, "n_frames": 20, "settle": 0.5}
     fab = fabric_profile("knit")
-    base = simulate_swatch(fab, swatch_motion("exp2"), {}, np.random.default_rng(3), **small)
-    run = simulate_swatch(fab, swatch_motion("exp2"), effects, np.random.default_rng(3), **small)
-    assert run.ok, run.failure
     (name,) = effects
+    # the wind acts through the air: its base is the swatch in still air, not in vacuum
+    base_eff = {"air_drag": {"on": True}} if name == "wind" else {}
+    base = simulate_swatch(fab, swatch_motion("exp2"), base_eff, np.random.default_rng(3), **small)
+    run = simulate_swatch(fab, swatch_motion("exp2"), {**base_eff, **effects}, np.random.default_rng(3), **small)
+    assert run.ok, run.failure
     assert run.truth["effects"][name]["on"] is True
     slip = np.abs(run.truth["corner_paths_true"] - run.corner_paths_measured)
     if name == "mocap_noise":  # only the measurement changes: the cloth is untouched
@@ -144,7 +146,7 @@ def test_effects_switch_on_and_change_the_motion(effects):
 
 
 def test_seed_reproducible_and_seed_matters():
-    eff = {"wind": {"on": True, "velocity": [0.0, 1.5, 0.0], "gust": 0.8}}
+    eff = {"air_drag": {"on": True}, "wind": {"on": True, "velocity": [0.0, 1.5, 0.0], "gust": 0.8}}
     small = {"resolution": 9, "n_frames": 15, "settle": 0.3}
     a = simulate_swatch(fabric_profile("satin"), swatch_motion("robot"), eff, np.random.default_rng(7), **small)
     b = simulate_swatch(fabric_profile("satin"), swatch_motion("robot"), eff, np.random.default_rng(7), **small)
@@ -182,6 +184,16 @@ def test_bad_inputs_raise_clear_errors():
         resolve_effects({"wnd": {"on": True}})
     with pytest.raises(ClothRealityError, match="veloc"):
         resolve_effects({"wind": {"veloc": 1}})
+    # values are checked by name before any simulation
+    for bad, match in (({"air_drag": {"on": True, "density": -5.0}}, r"\['air_drag'\]\['density'\] must be a number >= 0"),
+                       ({"air_drag": {"on": True}, "wind": {"on": True, "velocity": [1.0, 2.0]}}, r"\['wind'\]\['velocity'\] must be 3"),
+                       ({"air_drag": {"on": "false"}}, r"\['air_drag'\]\['on'\] must be true or false"),
+                       ({"grip_slip": {"on": True, "drop": -0.05}}, r"\['grip_slip'\]\['drop'\]"),
+                       ({"strain_stiffening": {"on": True, "c3": -1.0, "stiffness": -300.0}}, r"\['strain_stiffening'\]\['c3'\]"),
+                       ({"mocap_noise": {"on": True, "sigma": -1e-3}}, r"\['mocap_noise'\]\['sigma'\]"),
+                       ({"wind": {"on": True}}, "wind.*air_drag.*off")):
+        with pytest.raises(ClothRealityError, match=match):
+            resolve_effects(bad)
     fab = fabric_profile("linen")
     fab["bend"] = -1.0
     with pytest.raises(ClothRealityError, match="bend"):
@@ -197,8 +209,22 @@ def test_bad_inputs_raise_clear_errors():
 def test_divergence_returns_a_failure_not_an_exception():
     """A hurricane (300 m/s wind) blows the explicit air forces up: a flagged run, no NaN, no raise."""
     run = simulate_swatch(fabric_profile("satin"), swatch_motion("exp1"),
-                          {"wind": {"on": True, "velocity": [0.0, 300.0, 0.0]}}, np.random.default_rng(0),
+                          {"air_drag": {"on": True}, "wind": {"on": True, "velocity": [0.0, 300.0, 0.0]}}, np.random.default_rng(0),
                           resolution=9, n_frames=20, settle=0.3)
     assert not run.ok and run.failure
     assert len(run.vertices) < 20 and np.isfinite(run.vertices).all()
     assert len(run.times) == len(run.vertices) == len(run.corner_paths_measured)
+
+
+def test_extra_edge_springs_strips_add_up_to_the_swatch_width():
+    """Each grid line of edges carries a strip of the width h, the two border lines h/2: n lines
+    then carry exactly the swatch's width, so the membrane N/m written to the truth is the one the
+    springs apply (all lines at h made it n/(n-1) too stiff: 7 % at 15 vertices)."""
+    from vidsim.reality.cloth import _border_halves
+
+    size, n = 0.3, 15
+    h = size / (n - 1)
+    coord = np.repeat(np.linspace(-size / 2, size / 2, n), n - 1)  # n lines of n-1 edges each
+    w = _border_halves(coord)
+    assert np.isclose(np.sum(w * h) / (n - 1), size)
+    assert np.count_nonzero(w == 0.5) == 2 * (n - 1)

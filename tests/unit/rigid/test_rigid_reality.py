@@ -64,6 +64,22 @@ def test_effects_are_validated():
         make_throw(0, effects=RigidEffects(wind=[1.0, 2.0]), render=False)
     with pytest.raises(RigidBodyError, match="n_frames"):
         make_throw(0, RigidRealityConfig(n_frames=0), render=False)
+    # a wind with the air off would do nothing (MuJoCo's air model is off): refused
+    with pytest.raises(RigidBodyError, match="wind.*air is off"):
+        make_throw(0, effects=RigidEffects(wind=[3.0, 0.0, 0.0]), render=False)
+    # blur and rolling shutter are made by rendering only
+    for eff in (RigidEffects(exposure=0.01), RigidEffects(rolling_shutter=0.02)):
+        with pytest.raises(RigidBodyError, match="render=True"):
+            make_throw(0, effects=eff, render=False)
+    # schema fields this reality does not make, and unknown keys, are refused (they were dropped silently)
+    with pytest.raises(RigidBodyError, match=r"gravity_tilt_deg = 5.*does not make"):
+        RigidEffects.from_schema({"gravity_tilt_deg": 5.0})
+    with pytest.raises(RigidBodyError, match=r"time_offset_s"):
+        RigidEffects.from_schema({}, {"time_offset_s": 0.05})
+    with pytest.raises(RigidBodyError, match=r"unknown field\(s\) \['typo_key'\]"):
+        RigidEffects.from_schema({"typo_key": 3})
+    e = RigidEffects.from_schema({"air_drag": 1.0, "wind": [1.0, 0.0, 0.0], "gravity_tilt_deg": 0.0}, {"time_offset_s": 0.0})
+    assert e.drag == 1.0 and e.air_on and e.wind == [1.0, 0.0, 0.0]
 
 
 def test_truth_is_not_in_meta():
@@ -85,3 +101,17 @@ def test_effects_from_project_schema_and_angular_drag_slows_spin():
     turned0 = ang(q0[1:], q0[:-1]).sum()
     turned1 = ang(q1[1:], q1[:-1]).sum()
     assert turned1 < 0.99 * turned0
+
+
+def test_body_fields_of_the_wrong_shape_or_type_are_named():
+    """meta.yaml's object with 3 principal moments, or a mass in words, ended in numpy's reshape or
+    float traceback; the body now names the field and what it expects."""
+    body, _ = t_object()
+    kw = dict(centers=body.centers, half_sizes=body.half_sizes, mass=body.mass, inertia=body.inertia,
+              symmetries=body.symmetries)
+    with pytest.raises(RigidBodyError, match=r"'inertia' must be a 3x3 matrix"):
+        BoxBody(**{**kw, "inertia": [0.002, 0.0095, 0.0095]})
+    with pytest.raises(RigidBodyError, match=r"'mass' must be a number \(kg\), got 'heavy'"):
+        BoxBody(**{**kw, "mass": "heavy"})
+    with pytest.raises(RigidBodyError, match=r"'centers'"):
+        BoxBody(**{**kw, "centers": [[0.0, 0.0]]})
