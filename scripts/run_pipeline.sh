@@ -7,4 +7,4 @@ source "$ROOT/scripts/setup.sh"
 cd "$ROOT"
 snakemake --profile workflow/profiles/default "$@"
 snakemake --profile workflow/profiles/default "$@" --report results/report.html
-echo "[vidsim] done. Report: $ROOT/results/report.html   Recordings: rerun $ROOT/results/<stage>/*.rrd"
+echo "[vidsim] done. Report: $ROOT/results/report.html   Recordings: rerun --web-viewer $ROOT/results/<stage>/*.rrd (headless; plain rerun with a display)"

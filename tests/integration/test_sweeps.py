@@ -127,6 +127,23 @@ def test_sweep_overrides_are_checked_like_single_runs(tmp_path):
     assert "probe ran" not in r.stdout
     r = _probe(tmp_path, "-m", "camera.focal=3", "seed=0,2")
     assert r.returncode == 2 and "Traceback" not in r.stderr and "camera.focal" in r.stderr, r.stderr[-2000:]
+    # the swept overrides themselves: a '+' key, an unknown key, a wrong type in any value stop the
+    # sweep with one line before any point runs (the '+' key was ignored; the others were Hydra's
+    # multi-line report, after the points before the bad value had run)
+    for swept, words in (("+rigid.fit.max_iter=4,5", "rigid.fit.max_iter (added with '+') is unknown"),
+                         ("rigid.fit.max_iterz=4,5", "max_iterz"),
+                         ("seed=0,abc", "seed")):
+        r = _probe(tmp_path, "-m", swept)
+        assert r.returncode == 2 and "Traceback" not in r.stderr and words in r.stderr, r.stderr[-2000:]
+        assert len(r.stderr.strip().splitlines()) == 1 and "probe ran" not in r.stdout, r.stderr[-2000:]
+
+
+def test_a_clean_sweep_removes_the_last_sweeps_failed_csv(tmp_path):
+    r = _probe(tmp_path, "-m", "seed=0,1")
+    failed = tmp_path / "results" / "sweeps" / "probe" / "failed.csv"
+    assert r.returncode == 2 and failed.is_file()
+    r = _probe(tmp_path, "-m", "seed=0,2")
+    assert r.returncode == 0 and not failed.exists(), r.stderr[-2000:]
 
 
 def test_output_folder_must_lie_inside_results_and_be_given(tmp_path):
@@ -134,5 +151,11 @@ def test_output_folder_must_lie_inside_results_and_be_given(tmp_path):
     res = tmp_path / "results"
     r = _probe(tmp_path, f"paths.out={res}", "seed=0")
     assert r.returncode == 2 and "is the results folder itself" in r.stderr, r.stderr[-2000:]
+    res.mkdir(parents=True, exist_ok=True)
+    (res / "afile").write_text("x")  # a file where the output folder, or a parent of it, must go
+    for out in (res / "afile", res / "afile" / "sub"):
+        r = _probe(tmp_path, f"paths.out={out}", "seed=0")
+        assert r.returncode == 2 and "is an existing file, not a folder" in r.stderr, r.stderr[-2000:]
+        assert "probe ran" not in r.stdout
     r = _probe(tmp_path, "seed=0")  # no paths.out at all
     assert r.returncode == 2 and "Traceback" not in r.stderr and "paths.out is required" in r.stderr, r.stderr[-2000:]

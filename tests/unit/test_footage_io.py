@@ -186,3 +186,52 @@ def test_write_animation_refuses_frames_it_would_spoil(tmp_path):
     with pytest.raises(ValueError, match=r"\(T, H, W, 3\)"):
         write_animation(tmp_path / "a.gif", np.zeros((8, 8, 3), np.uint8), 30.0)
     assert not list(tmp_path.iterdir())
+
+
+def test_times_csv_header_and_columns(tmp_path, rng):
+    """times.csv is read by its header: a 'frame,time_s' file was read as frame numbers in seconds
+    (30x too slow, no error); a header-less file silently lost its first time; a decimal comma gave a
+    misleading 'must increase'."""
+    frames, times = _write(tmp_path / "f", rng)
+    csv = tmp_path / "f" / "times.csv"
+    csv.write_text("frame,time_s\n" + "".join(f"{i},{t:.6f}\n" for i, t in enumerate(times)))
+    assert np.allclose(read_footage(tmp_path / "f").times, times, atol=1e-6)
+    for text, match in (("".join(f"{t:.6f}\n" for t in times), "is a number, not a header"),
+                        ("frame,index\n" + "".join(f"{i},{i}\n" for i in range(5)), "none named as the time"),
+                        ("time_s\n" + "".join(f"{t:.6f}".replace(".", ",") + "\n" for t in times), "decimal comma"),
+                        ("", "empty")):
+        csv.write_text(text)
+        with pytest.raises(FootageError, match=match):
+            read_footage(tmp_path / "f")
+
+
+def test_unpadded_frame_names_are_read_in_numeric_order(tmp_path, rng):
+    """frame0.png ... frame11.png (ffmpeg's %d) sorted as text gave 0, 1, 10, 11, 2, ... silently."""
+    import cv2
+
+    frames, times = _write(tmp_path / "f", rng, n=12)
+    fdir = tmp_path / "f" / "frames"
+    for p in sorted(fdir.iterdir()):
+        p.unlink()
+    for i, im in enumerate(frames):
+        cv2.imwrite(str(fdir / f"frame{i}.png"), cv2.cvtColor(im, cv2.COLOR_RGB2BGR))
+    assert np.array_equal(read_footage(tmp_path / "f").frames, frames)
+
+
+def test_several_video_files_are_refused_unless_one_is_named_video(tmp_path, shared_data):
+    """With a leftover second video the alphabetically first one was read silently."""
+    import shutil
+
+    src = shared_data / "tracklab_physics" / "verticalToss.webm"
+    if not src.is_file():
+        pytest.skip("shared recording missing")
+    folder = tmp_path / "v"
+    folder.mkdir()
+    shutil.copy(src, folder / "toss.webm")
+    shutil.copy(src, folder / "a_backup.webm")
+    with pytest.raises(FootageError, match="several video files.*a_backup.webm, toss.webm.*video.<ext>"):
+        read_footage(folder, max_frames=2)
+    (folder / "toss.webm").rename(folder / "video.webm")
+    # the chosen file is video.webm: the reader goes on to the calibration (missing here)
+    with pytest.raises(FootageError, match="calibration.yaml"):
+        read_footage(folder, max_frames=2)

@@ -40,9 +40,14 @@ def check_paths(cfg: DictConfig) -> None:
                           "folder inside it, e.g. paths.out=${paths.results}/mine")
     if results not in out.parents:
         raise ConfigError(f"paths.out = {cfg.paths.out!r} escapes the results folder {str(results)!r} (paths.results)")
+    # a file where the output folder (or one of its parents) must go: refused now, not after the work
+    for p in (out, *out.parents):
+        if p.exists() and not p.is_dir():
+            raise ConfigError(f"paths.out = {cfg.paths.out!r}: {str(p)!r} is an existing file, not a folder")
 
 
 _FAILED_POINTS: list[str] = []  # sweep points of this process that failed (multirun)
+_SWEEP_DIRS: set[str] = set()  # the sweep folder(s) of this process's points (multirun)
 
 
 def _in_multirun() -> bool:
@@ -92,6 +97,11 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
         cv2.setNumThreads(int(os.environ.get("VIDSIM_OPENCV_THREADS", "1")))
         from omegaconf.errors import MissingMandatoryValue
 
+        if _in_multirun():
+            from hydra.core.hydra_config import HydraConfig
+
+            _SWEEP_DIRS.add(str(HydraConfig.get().sweep.dir))
+
         try:
             validate(cfg)
             check_paths(cfg)
@@ -124,6 +134,11 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
             sys.argv.append(f"paths.out=${{paths.results}}/sweeps/{name}/${{hydra:job.override_dirname}}")
         _precheck_overrides(name, sys.argv[1:])
         _main()
+        if not _FAILED_POINTS:
+            from pathlib import Path
+
+            for d in _SWEEP_DIRS:  # failed.csv belongs to the last sweep: a clean one leaves none
+                (Path(d) / "failed.csv").unlink(missing_ok=True)
         if _FAILED_POINTS:
             print(f"vidsim {name}: {len(_FAILED_POINTS)} sweep point(s) failed (the others ran): "
                   f"{', '.join(_FAILED_POINTS)}", file=sys.stderr)
@@ -138,25 +153,64 @@ def _precheck_overrides(name: str, args: list[str]) -> None:
     type, a ``+`` key a schema node does not have) into one line instead of Hydra's multi-line
     report or a silently ignored key. In a sweep the same checks run on the overrides that are not
     sweeps (Hydra flags, starting with '-', and swept values, with a ',' or a sweep function,
-    are left to Hydra)."""
+    are left to Hydra, except a plain comma list ``k=a,b``, of which every value is checked with the
+    other overrides before any point runs: an unknown swept key, a wrong type or a ``+`` key a
+    schema node lacks stops the sweep with one line, instead of Hydra's multi-line report after
+    the points before it ran, or a silently ignored key)."""
+    variants = [args]
     if any(a.startswith("-") for a in args):
-        args = [a for a in args if not a.startswith("-") and not _is_sweep(a)]
+        fixed = [a for a in args if not a.startswith("-") and not _is_sweep(a)]
+        variants = [fixed]
+        for a in args:
+            if a.startswith("-") or not _is_sweep(a):
+                continue
+            values = _plain_sweep_values(a)
+            if values is None:
+                continue  # range(), choice(), ...: left to Hydra
+            key = a.split("=", 1)[0]
+            variants += [fixed + [f"{key}={v}"] for v in values]
     from hydra import compose, initialize_config_dir
     from hydra.errors import HydraException
 
-    try:
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            cfg = compose("config", overrides=args)
-    except HydraException as e:
-        first = str(e).strip().splitlines()[0]
-        cause = e.__cause__
-        why = str(cause).strip().splitlines()[0] if cause is not None and str(cause).strip() else ""
-        print(f"vidsim {name}: error: {first}{' ' + why if why and why not in first else ''}", file=sys.stderr)
-        sys.exit(2)
-    bad = unknown_added_key(cfg, args)
-    if bad:
-        print(f"vidsim {name}: error: {bad}", file=sys.stderr)
-        sys.exit(2)
+    for overrides in variants:
+        try:
+            with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+                cfg = compose("config", overrides=overrides)
+        except HydraException as e:
+            first = str(e).strip().splitlines()[0]
+            cause = e.__cause__
+            why = str(cause).strip().splitlines()[0] if cause is not None and str(cause).strip() else ""
+            print(f"vidsim {name}: error: {first}{' ' + why if why and why not in first else ''}", file=sys.stderr)
+            sys.exit(2)
+        bad = unknown_added_key(cfg, overrides)
+        if bad:
+            print(f"vidsim {name}: error: {bad}", file=sys.stderr)
+            sys.exit(2)
+
+
+def _plain_sweep_values(arg: str) -> list[str] | None:
+    """The values of a plain comma-list sweep ``k=a,b,[1,2]`` (commas inside brackets or quotes kept),
+    or None for a sweep function (``range(...)``, ``choice(...)``, ...)."""
+    value = arg.split("=", 1)[1]
+    if value.split("(", 1)[0] in ("range", "choice", "interval", "glob", "tag", "sort", "shuffle"):
+        return None
+    out, cur, depth, quote = [], "", 0, ""
+    for ch in value:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch in "[{(":
+            depth += 1
+        elif ch in "]})":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            out.append(cur)
+            cur = ""
+            continue
+        cur += ch
+    out.append(cur)
+    return out
 
 
 def _is_sweep(arg: str) -> bool:

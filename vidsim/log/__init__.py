@@ -68,7 +68,9 @@ class RerunLogger:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._tmp = self.path.with_name(f".{self.path.name}.part")
         app_id = re.sub(r"[^a-z0-9_-]", "-", app_id.lower())  # rerun's entry-name rules
-        self.rec = rr.RecordingStream(app_id, recording_id=recording_id or self.path.stem)
+        # default id: the output folder and the file (calibrate.rrd of two sweep points, or rigid.rrd of two
+        # throws, shared the id "calibrate"/"rigid", and the viewer merged them into one recording)
+        self.rec = rr.RecordingStream(app_id, recording_id=recording_id or f"{self.path.parent.name}/{self.path.stem}")
         self.rec.save(str(self._tmp))
         self._closed = False
 
@@ -145,6 +147,8 @@ class RerunLogger:
             return
         self.rec.flush()
         self.rec.disconnect()
+        with open(self._tmp, "rb") as fh:  # on disk before the rename (a power loss must not leave an empty .rrd)
+            os.fsync(fh.fileno())
         os.replace(self._tmp, self.path)
         self._closed = True
 
