@@ -138,6 +138,23 @@ def test_sweep_overrides_are_checked_like_single_runs(tmp_path):
         assert len(r.stderr.strip().splitlines()) == 1 and "probe ran" not in r.stdout, r.stderr[-2000:]
 
 
+def test_an_unknown_group_option_lists_the_groups_options(tmp_path):
+    r = _probe(tmp_path, "camera=nonexist", "seed=0")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr[-2000:]
+    assert "Could not find 'camera/nonexist'" in r.stderr and "Available options in 'camera': " in r.stderr
+    assert "cloth" in r.stderr and "search path" not in r.stderr
+
+
+def test_help_says_what_the_stage_does_and_cfg_job_prints_the_settings(tmp_path):
+    """--help printed Hydra's generic text and an 800-line config dump; --cfg job failed in the
+    override check ('Error parsing override job')."""
+    r = _probe(tmp_path, "--help")
+    assert r.returncode == 0 and "Usage: python -m vidsim.cli.probe paths.out=" in r.stdout, r.stderr[-2000:]
+    assert len(r.stdout.splitlines()) < 30
+    r = _probe(tmp_path, "--cfg", "job", f"paths.out={tmp_path / 'results' / 'p'}", "seed=3")
+    assert r.returncode == 0 and "seed: 3" in r.stdout and "probe ran" not in r.stdout, r.stderr[-2000:]
+
+
 def test_a_clean_sweep_removes_the_last_sweeps_failed_csv(tmp_path):
     r = _probe(tmp_path, "-m", "seed=0,1")
     failed = tmp_path / "results" / "sweeps" / "probe" / "failed.csv"

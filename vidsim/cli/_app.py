@@ -126,6 +126,9 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
 
     def _entry() -> None:
         args = sys.argv[1:]
+        if any(a in ("--help", "-h") for a in args):
+            _stage_help(name, run)
+            return
         if not any(a.startswith("hydra.job.name=") for a in args):
             # names the sweep folder (${paths.results}/sweeps/<stage>) and Hydra's logs
             sys.argv.append(f"hydra.job.name={name}")
@@ -148,6 +151,25 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
     return _entry
 
 
+def _stage_help(name: str, run: Callable) -> None:
+    """``--help``: what the stage does (its module's docstring) and how to see its settings, instead of
+    Hydra's generic text followed by an 800-line dump of the whole config tree."""
+    import inspect
+
+    mod = sys.modules.get(getattr(run, "__module__", ""), None)
+    doc = inspect.getdoc(mod) if mod is not None else None
+    print(doc or f"Stage {name}.")
+    print(f"""
+Usage: python -m vidsim.cli.{name} paths.out=<folder inside paths.results> [key=value ...]
+       python -m vidsim.cli.{name} -m key=a,b ...   (a sweep: one folder per point under results/sweeps/{name}/)
+
+Every stage needs paths.out (its output folder, inside paths.results = results/ by default); stages that
+read footage or earlier results name those paths above. Settings are Hydra config keys (conf/):
+  python -m vidsim.cli.{name} --cfg job [key=value ...]   print the composed settings this run would use
+  python -m vidsim.cli.{name} --hydra-help                Hydra's own options
+Bad input stops with exit code 2 and one line naming the file, field or value.""")
+
+
 def _precheck_overrides(name: str, args: list[str]) -> None:
     """Compose the config once before Hydra does, to turn a bad override (unknown key, wrong
     type, a ``+`` key a schema node does not have) into one line instead of Hydra's multi-line
@@ -157,6 +179,20 @@ def _precheck_overrides(name: str, args: list[str]) -> None:
     other overrides before any point runs: an unknown swept key, a wrong type or a ``+`` key a
     schema node lacks stops the sweep with one line, instead of Hydra's multi-line report after
     the points before it ran, or a silently ignored key)."""
+    # Hydra's flags, and the value of those that take one (--cfg job, -p <package>, ...), are not overrides
+    with_value = {"--cfg", "-c", "--package", "-p", "--config-path", "-cp", "--config-name", "-cn",
+                  "--config-dir", "-cd", "--info", "-i", "--experimental-rerun"}
+    kept, skip = [], False
+    for a in args:
+        if skip:
+            skip = False
+            if "=" not in a:
+                continue
+        if a in with_value:
+            skip = True
+            continue
+        kept.append(a)
+    args = kept
     variants = [args]
     if any(a.startswith("-") for a in args):
         fixed = [a for a in args if not a.startswith("-") and not _is_sweep(a)]
@@ -177,7 +213,16 @@ def _precheck_overrides(name: str, args: list[str]) -> None:
             with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
                 cfg = compose("config", overrides=overrides)
         except HydraException as e:
-            first = str(e).strip().splitlines()[0]
+            lines = str(e).strip().splitlines()
+            first = lines[0]
+            avail = next((i for i, ln in enumerate(lines) if ln.strip().startswith("Available options")), None)
+            if avail is not None:  # an unknown group option: keep Hydra's list of the group's options, on the line
+                opts = []
+                for ln in lines[avail + 1:]:  # the indented option names; the config search path follows
+                    if not ln.startswith((" ", "\t")) or not ln.strip():
+                        break
+                    opts.append(ln.strip())
+                first += f" ({lines[avail].strip().rstrip(':')}: {', '.join(opts)})"
             cause = e.__cause__
             why = str(cause).strip().splitlines()[0] if cause is not None and str(cause).strip() else ""
             print(f"vidsim {name}: error: {first}{' ' + why if why and why not in first else ''}", file=sys.stderr)

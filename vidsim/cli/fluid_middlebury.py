@@ -44,7 +44,10 @@ def run(cfg: DictConfig) -> None:
         if not flo.is_file():
             raise FootageError(f"{flo}: ground-truth flow file is missing")
         a, b = read_image(d / "frame10.png"), read_image(d / "frame11.png")
-        gt = parse_flo(flo.read_bytes())
+        try:
+            gt = parse_flo(flo.read_bytes())
+        except ValueError as e:  # the parser's message does not know the file
+            raise FootageError(f"{flo}: {e}") from None
         if gt.shape[:2] != a.shape[:2]:
             raise FootageError(f"{flo}: ground truth {gt.shape[1]}x{gt.shape[0]} does not match frame10.png {a.shape[1]}x{a.shape[0]}")
         res[sc] = {}

@@ -47,6 +47,14 @@ def read_summary(path: Path) -> dict[str, tuple[str, str]]:
     return {r["quantity"]: (r.get("estimated", ""), r.get("difference", "")) for r in rows}
 
 
+def _is_number(v) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--table", required=True)
@@ -56,7 +64,13 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--group", default=None)
     ap.add_argument("--quantities", nargs="+", required=True)
     a = ap.parse_args(argv)
-    columns = Path(a.table).read_text().splitlines()[0].split("\t")
+    table = Path(a.table)
+    if not table.is_file():
+        raise SystemExit(f"vidsim sweep: error: {table}: the sweep table is missing")
+    lines = table.read_text().splitlines()
+    if not lines:
+        raise SystemExit(f"vidsim sweep: error: {table}: empty (expected a tab-separated header and one row per point)")
+    columns = lines[0].split("\t")
     for c in [a.x] + ([a.group] if a.group else []):
         if c not in columns:
             raise SystemExit(f"vidsim sweep: error: column '{c}' not in {a.table} (columns: {columns})")
@@ -64,7 +78,10 @@ def main(argv: list[str] | None = None) -> None:
     for p in a.points:
         p = Path(p)
         point = parse_point(p.name, columns)
-        summ = read_summary(p / "summary.csv")
+        try:
+            summ = read_summary(p / "summary.csv")
+        except VidsimError as e:
+            raise SystemExit(f"vidsim sweep: error: {e}") from None
         row = dict(point)
         for q in a.quantities:
             if q not in summ:
@@ -72,6 +89,10 @@ def main(argv: list[str] | None = None) -> None:
             row[q], row[f"{q}_difference"] = summ[q]
         rows.append(row)
     out = Path(a.out)
+    for c in [a.x] + ([a.group] if a.group else []):
+        bad = [r[c] for r in rows if not _is_number(r[c])]
+        if bad:
+            raise SystemExit(f"vidsim sweep: error: column '{c}' must hold numbers to plot against, got {bad[:3]}")
     header = list(rows[0])
     write_text(out / "sweep.csv", "\n".join([",".join(header)] + [",".join(str(r[h]) for h in header) for r in rows]) + "\n")
 
