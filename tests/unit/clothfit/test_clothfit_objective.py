@@ -29,7 +29,8 @@ def twin_run():
     pc = projector_from_config(cfg.projector)
     proj = Projector(pc, period_px=cfg.projector.period_px, power=cfg.projector.power, ambient=cfg.projector.ambient)
     mot = swatch_motion("exp1")
-    V, F, cp, ok, failure = twin_swatch(TRUE, lambda t: corner_paths(mot, t), n_frames=24, fps=30.0, resolution=16,
+    # the twin at a finer mesh than the estimator's 16x16 (its own mesh would film the model's motion exactly)
+    V, F, cp, ok, failure = twin_swatch(TRUE, lambda t: corner_paths(mot, t), n_frames=24, fps=30.0, resolution=24,
                                         settle_s=0.5)
     assert ok, failure
     return V, F, cp, cam, proj
