@@ -1,0 +1,24 @@
+"""One rigid withheld-effect case end to end through the suite's own path (MuJoCo reality -> single-
+start fit from the perturbed-guess protocol -> blind diagnosis -> score), as the README's gap figures
+are made: the unit tests of the screen start from the true state on footage the gap model drew itself
+(review, 5 Dec 2026). The case is the public suite's `com_offset` (conf/gap/default.yaml), unchanged."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from vidsim.config import CONF_DIR
+from vidsim.gap.suite import run_case
+
+
+@pytest.mark.slow
+def test_withheld_com_offset_is_named_first_and_recovered_from_mujoco_footage():
+    case = yaml.safe_load(open(f"{CONF_DIR}/gap/default.yaml"))["cases"]["com_offset"]
+    diag, score, masks, th = run_case(case)
+    assert score["correct"] and score["named_first"] == "com_offset", score
+    # the issue's shrinkage and strength targets (measured 0.9+ and 5 % in the suite runs)
+    assert score["closure"]["com_offset"] >= 0.5, score
+    assert score["recovery"]["com_offset"]["rel_error"] <= 0.30, score["recovery"]
+    # the diagnosis was handed the footage, times, camera, body and the fit: the truth only scores
+    assert masks.shape[0] == len(th.times)
