@@ -1,6 +1,6 @@
 """Stage posterior_cloth through the CLI on a tiny twin reality (reality -> fits -> selection -> posterior).
 
-A coarse twin (10x10 mesh, 16 frames, every second one fitted) of the estimator's own simulator is filmed for exp1 and exp2,
+A coarse twin (14x14 mesh, finer than the 10x10 model; 16 frames, every second one fitted) of the estimator's own simulator is filmed for exp1 and exp2,
 each trial's stretch stiffness is fitted (other parameters known), the selection picks one, and the
 posterior stage samples its surrogate posterior and checks it at 50 draws against the simulator.
 """
@@ -39,7 +39,7 @@ def tiny_twin(tmp_path_factory):
         fp = res / "footage" / f"cloth_twin_{trial}"
         _run("vidsim.cli.cloth_reality", f"paths.results={res}", f"paths.calibration={cal / 'calibration.yaml'}",
              f"paths.out={fp}", "cloth.reality.kind=twin", f"cloth.reality.motion={trial}", "cloth.reality.n_frames=16",
-             "cloth.reality.twin_resolution=10", "cloth.reality.settle_s=0.5")
+             "cloth.reality.twin_resolution=14", "cloth.reality.settle_s=0.5")
         folders.append(fp)
     return res, folders
 
@@ -80,8 +80,11 @@ def test_posterior_cloth_stage_on_a_tiny_twin(tiny_twin):
     assert lines[0] == "name,unit,point,q05,median,q95,mean,sd"
     name, unit, point, q05, med, q95 = lines[1].split(",")[:6]
     assert name == "stretch" and unit == "N/m" and float(q05) <= float(med) <= float(q95)
-    # the stretch of the twin (300 N/m) from a 20-4000 N/m box: a finite, informative interval near it
-    assert float(q95) / float(q05) < 20 and float(q05) / 3 < truth["stretch"] < 3 * float(q95)
+    # the stretch of the twin (300 N/m) from a 20-4000 N/m box (a ratio of 200): a 90 % interval that holds
+    # it and narrows the box 20-fold (it accepted an interval 2.7x beside the truth before; fixed seeds, so
+    # this is deterministic: measured [103, 869] N/m around a point of 146 with the 14x14 twin; [157, 484]
+    # when the twin was filmed on the model's own 10x10 mesh)
+    assert float(q95) / float(q05) < 10 and float(q05) <= truth["stretch"] <= float(q95), lines[1]
     assert "posterior_cloth: converged" in log
     # Table 1 with intervals: the selection beside its posterior (the estimated parameter with its
     # interval, the others marked fixed); a missing summary is a one-line error naming the file
