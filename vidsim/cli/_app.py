@@ -127,7 +127,11 @@ def stage_app(name: str, run: Callable[[DictConfig], None]) -> Callable[[], None
     def _entry() -> None:
         args = sys.argv[1:]
         if any(a in ("--help", "-h") for a in args):
-            _stage_help(name, run)
+            try:
+                _stage_help(name, run)
+                sys.stdout.flush()
+            except BrokenPipeError:  # `--help | head`: the reader left, which is not an error
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             return
         if not any(a.startswith("hydra.job.name=") for a in args):
             # names the sweep folder (${paths.results}/sweeps/<stage>) and Hydra's logs

@@ -52,6 +52,24 @@ def segment_config(s: DictConfig | dict) -> SegmentConfig:
     return sc
 
 
+def ball_video(cfg: DictConfig, error: type[Exception]) -> Path:
+    """The video file of the ball stages (``rigid_ball``, ``gap_ball``): ``rigid.paths.video``, else
+    the shared data's ``rigid.ball.video``. They read one video (and fit the focal length themselves);
+    a footage folder given as ``paths.footage`` was silently ignored, and one given as the video was
+    reported missing."""
+    from vidsim.io.paths import shared_data_dir
+
+    if str(cfg.paths.get("footage") or ""):
+        raise error(f"paths.footage = {cfg.paths.footage!r}: this stage reads a video file given as rigid.paths.video "
+                    "(not a footage folder; its calibration is not used, the focal length is fitted)")
+    video = Path(cfg.rigid.paths.video) if cfg.rigid.paths.video else shared_data_dir() / cfg.rigid.ball.video
+    if video.is_dir():
+        raise error(f"rigid.paths.video = {str(video)!r} is a folder: expected a video file (webm, mp4, ...)")
+    if not video.is_file():
+        raise error(f"{video}: the real toss clip is missing (rigid.paths.video / rigid.ball.video)")
+    return video
+
+
 def load_yaml(path: str | Path) -> Any:
     """A YAML file's content; a one-line error naming the file when missing or invalid."""
     from vidsim.io.footage import load_yaml as _load

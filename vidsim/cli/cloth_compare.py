@@ -79,6 +79,7 @@ def run(cfg: DictConfig) -> None:
     evals = {m: [int(sum(len(traces[m][i * nt + k][0]) for k in range(nt))) for i in range(n)] for m in ("anneal", "cmaes")}
     evals["joint"] = [nt * len(t[0]) for t in traces["joint"]]
     best = [METHODS[int(np.argmin(E[i]))] for i in range(n)]
+    _figures(fabrics, E, traces, nt, out)  # the figures first, the tables last (a kill leaves no new table beside old figures)
     write_text(out / "compare.csv", "fabric," + ",".join(f"heldout_{m}" for m in METHODS) + "," +
                ",".join(f"simulations_{m}" for m in METHODS) + ",best\n" + "".join(
                    f"{fab}," + ",".join(f"{E[i, m]:.5g}" for m in range(len(METHODS))) + "," +
@@ -87,7 +88,6 @@ def run(cfg: DictConfig) -> None:
         "fabrics": fabrics, "methods": list(METHODS), "heldout_error": E.tolist(), "trial_simulations": evals,
         "best_on_heldout": dict(zip(fabrics, best)),
         "wins": {m: int(sum(b == m for b in best)) for m in METHODS}})
-    _figures(fabrics, E, traces, nt, out)
     print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best)), flush=True)
 
 

@@ -18,6 +18,7 @@ as an uninterrupted run); the file is removed once ``fit.yaml`` is written.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import asdict
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from vidsim.cli._rigid import RigidStageError, body_from_meta, fit_config, log_i
 from vidsim.io.video import write_animation
 from vidsim.config.rigid import validate_rigid
 from vidsim.io.atomic import write_yaml
+from vidsim.rigid.fit import MIN_EXPLAINED_IOU
 from vidsim.io.footage import read_calibration, read_footage
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
@@ -152,6 +154,10 @@ def run(cfg: DictConfig) -> None:
             lg.scalar("metric/mismatch_px", float(mism[k]))
             lg.mesh3d("world/fit/body", corners[k], F, color=(0.1, 0.8, 0.2))
         lg.series("optim/objective", np.asarray(res.history))
+    failed = res.mean_iou < MIN_EXPLAINED_IOU
+    if failed:
+        d["warning"] = (f"the fit explains little of the silhouettes (mean IoU {res.mean_iou:.3f} < {MIN_EXPLAINED_IOU}): "
+                        "check the masks (segment_sheet.png), the object in meta.yaml and the initial guess")
     # the main output last: a kill while the figures are written leaves no new fit.yaml beside old figures
     write_yaml(out / "fit.yaml", d)
     ckpt.unlink(missing_ok=True)
@@ -159,6 +165,8 @@ def run(cfg: DictConfig) -> None:
     replay = f" ({res.replayed_stages} stages replayed from the checkpoint)" if res.replayed_stages else ""
     print(f"fit_rigid: mean IoU {res.mean_iou:.4f} over {len(res.frames)} frames, {res.n_starts} starts, "
           f"{res.seconds:.1f} s{replay}{alt} -> {out / 'fit.yaml'}")
+    if failed:
+        print(f"fit_rigid: warning: {d['warning']}", file=sys.stderr)
 
 
 main = stage_app("fit_rigid", run)

@@ -29,6 +29,7 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from omegaconf import DictConfig
 
@@ -42,6 +43,9 @@ from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
 from vidsim.io.footage import load_yaml, read_footage
 from vidsim.log import make_logger
+
+#: widest edit.gif (footage | edit side by side) in pixels; wider pairs are scaled down
+GIF_MAX_WIDTH = 1024
 from vidsim.log.progress import Progress
 from vidsim.report.figures import contact_sheet, save_figure
 
@@ -274,8 +278,12 @@ def run(cfg: DictConfig) -> None:
         write_video(tmp / "edit.mp4", outf, float(ec.video_fps))
         g = np.linspace(0, n_frames - 1, min(int(ec.gif_frames), n_frames)).round().astype(int)
         sep = np.full((H, 2, 3), 255, np.uint8)
-        write_gif(tmp / "edit.gif", np.stack([np.concatenate([src[i % src.shape[0]], sep, outf[i]], 1) for i in g]),
-                  float(ec.video_fps) / max(1, n_frames // max(len(g), 1)))
+        pairs = np.stack([np.concatenate([src[i % src.shape[0]], sep, outf[i]], 1) for i in g])
+        if pairs.shape[2] > GIF_MAX_WIDTH:  # the report's preview: 24 full-resolution PIV frames made a 30 MB GIF
+            f = GIF_MAX_WIDTH / pairs.shape[2]
+            size = (GIF_MAX_WIDTH, max(1, round(pairs.shape[1] * f)))
+            pairs = np.stack([cv2.resize(p, size, interpolation=cv2.INTER_AREA) for p in pairs])
+        write_gif(tmp / "edit.gif", pairs, float(ec.video_fps) / max(1, n_frames // max(len(g), 1)))
         contact_sheet(outf, tmp / "contact_sheet.png")
         _arrow_figure(tmp / "arrows.png", spec, src.mean(0).astype(np.uint8), video_mean, r["edited_field_px"], res,
                       step * 2, f"{out.name}: {100 * summary['fraction_in_desired_sink']:.1f} % of {summary['particles']} "

@@ -77,8 +77,8 @@ def run(cfg: DictConfig) -> None:
     for ax in axes.ravel():
         ax.axis("off")
     save_figure(fig, out / "middlebury.png")
-    write_json(out / "summary.json", {"method": cfg.fluid.flow.method, "epe_px": res})
-    write_text(out / "epe.csv", "\n".join(rows) + "\n")  # the main output last
+    write_text(out / "epe.csv", "\n".join(rows) + "\n")
+    write_json(out / "summary.json", {"method": cfg.fluid.flow.method, "epe_px": res})  # read by fluid_metrics: last
 
 
 main = stage_app("fluid_middlebury", run)

@@ -31,18 +31,15 @@ class GapBallError(VidsimError):
 
 
 def run(cfg: DictConfig) -> None:
-    from vidsim.cli._rigid import segment_config
+    from vidsim.cli._rigid import ball_video, segment_config
     from vidsim.gap.ball import diagnose_flights
     from vidsim.gap.rigid_model import GapError
     from vidsim.io.footage import read_video
-    from vidsim.io.paths import shared_data_dir
     from vidsim.rigid.ballistic import split_flights, track_blob
     from vidsim.video.segment import segment
 
     b = cfg.rigid.ball
-    video = Path(cfg.rigid.paths.video) if cfg.rigid.paths.video else shared_data_dir() / b.video
-    if not video.is_file():
-        raise GapBallError(f"{video}: the real toss clip is missing (rigid.paths.video / rigid.ball.video)")
+    video = ball_video(cfg, GapBallError)
     if not b.nominal_fps > 0:
         raise GapBallError(f"rigid.ball.nominal_fps = {b.nominal_fps} is not valid: expected > 0 Hz")
     out = Path(cfg.paths.out)

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+import vidsim
 from vidsim.cli._app import stage_app
 from vidsim.cli.gap_suite import finished_or_reused, headline, select_cases, write_confusion, write_shrinkage
 from vidsim.errors import ConfigError
@@ -74,7 +75,7 @@ def run(cfg: DictConfig) -> None:
     # cloth study's devices, features and fit space (run_case reads them from cfg.cloth)
     common = {"diagnose": OmegaConf.to_container(cc.diagnose, resolve=True),
               "scene": OmegaConf.to_container(cc.scene, resolve=True),
-              "cloth": OmegaConf.to_container(cfg.cloth, resolve=True)}
+              "cloth": OmegaConf.to_container(cfg.cloth, resolve=True), "code": vidsim.SOURCE_DIGEST}
     prog = Progress(len(names), "gap_cloth_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
     resumed: list[str] = []

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+import vidsim
 from vidsim.cli._app import stage_app
 from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
 from vidsim.errors import ConfigError
@@ -144,7 +145,7 @@ def write_confusion(rows: list[str], cols: list[str], M: np.ndarray, folder: Pat
 
 
 def run(cfg: DictConfig) -> None:
-    from vidsim.gap.suite import case_labels, confusion, run_case
+    from vidsim.gap.suite import CaseFailed, case_labels, confusion, failed_score, run_case
     from vidsim.reality.rigid import RigidRealityConfig
 
     cases, names = select_cases(cfg.gap.cases, cfg.gap.only, "gap", case_labels, GapError)
@@ -160,8 +161,11 @@ def run(cfg: DictConfig) -> None:
             f.unlink()
     # log.rerun is part of a case's key: a case finished with recording off holds a placeholder
     # recording, which must not stand in for the case once recording is on
+    # the package's source digest too: a case finished by other code must not stand in for this code's
+    # (after a fix and --forcerun the finished output's cases were copied back unchanged)
     common = {"diagnose": OmegaConf.to_container(cfg.gap.diagnose, resolve=True),
-              "scene": OmegaConf.to_container(sc, resolve=True), "rerun": bool(cfg.log.rerun)}
+              "scene": OmegaConf.to_container(sc, resolve=True), "rerun": bool(cfg.log.rerun),
+              "code": vidsim.SOURCE_DIGEST}
     prog = Progress(len(names), "gap_suite cases", every_s=0.0, enabled=cfg.log.progress)
     scores: dict[str, dict] = {}
     resumed: list[str] = []
@@ -176,6 +180,16 @@ def run(cfg: DictConfig) -> None:
             continue
         try:
             d, s, masks, _ = run_case(cases[n], dcfg, scene)
+        except CaseFailed as e:  # a run-time failure of this case: a failed score, the suite goes on
+            s = failed_score(cases[n], str(e))
+            scores[n] = s
+            print(f"gap_suite: {n}: failed ({e})", file=sys.stderr)
+            plot_failed(tmp / "cases" / f"{n}.png", n, str(e))
+            with make_logger(tmp / "cases" / f"{n}.rrd", "vidsim.gap_suite", cfg.log.rerun, recording_id="suite") as lg:
+                lg.text(f"{n}/log", f"case failed: {e}")
+            write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": None})
+            prog.update(note=f"{n}: FAILED ({e})")
+            continue
         except GapError as e:
             raise ConfigError(f"gap.cases.{n}: {e}") from e
         scores[n] = s
@@ -202,6 +216,25 @@ def run(cfg: DictConfig) -> None:
     replace_dir(tmp, out)
 
 
+def plot_failed(path: Path, name: str, reason: str) -> None:
+    """The case's figure when it failed at run time: its name and the reason, nothing to plot."""
+    import textwrap
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 1.6))
+    ax.axis("off")
+    ax.text(0.0, 0.5, f"{name}: the case failed\n" + textwrap.fill(reason, 90), va="center", fontsize=9)
+    save_figure(fig, path)
+
+
+def _px(v) -> str:
+    return "" if v is None else f"{v:.2f}"
+
+
 def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:
     """``shrinkage.csv``: per case and true effect, the held-out gap before/after, closure and strength.
 
@@ -218,8 +251,8 @@ def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:
             est = r.get("estimate", "")
             tru = r.get("truth", "")
             lines.append(",".join(str(x) for x in (
-                n, s["label"], "+".join(s["named"]) or "none", s["correct"], f"{s['heldout_before_px']:.2f}",
-                f"{s['noise_floor_px']:.2f}", e, f"{s.get('heldout_after_px', {}).get(e, float('nan')):.2f}",
+                n, s["label"], "+".join(s["named"]) or ("failed" if s.get("failed") else "none"), s["correct"],
+                _px(s["heldout_before_px"]), _px(s["noise_floor_px"]), e, f"{s.get('heldout_after_px', {}).get(e, float('nan')):.2f}",
                 f"{s.get('closure', {}).get(e, float('nan')):.3f}",
                 (" ".join(f"{v:.4g}" for v in est) if isinstance(est, list) else (f"{est:.4g}" if est != "" else "")),
                 (" ".join(f"{v:.4g}" for v in tru) if isinstance(tru, list) else (f"{tru:.4g}" if tru != "" else "")),

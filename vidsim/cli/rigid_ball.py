@@ -11,21 +11,26 @@ a constant ``rigid.ball.nominal_fps``. Writes ``ball.yaml``, ``ball.png`` and ``
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli._rigid import RigidStageError, log_image, plain, segment_config
+from vidsim.cli._rigid import RigidStageError, ball_video, log_image, plain, segment_config
 from vidsim.io.atomic import write_yaml
 from vidsim.io.footage import read_video
-from vidsim.io.paths import shared_data_dir
 from vidsim.log import make_logger
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 from vidsim.rigid.ballistic import BallisticError, fit_flight, fit_flight_perspective, split_flights, track_blob
 from vidsim.video.segment import segment
+
+#: the stage warns below this many frames in flights or above this parabola (weak-perspective) fit RMS:
+#: the real toss has 46 flight frames at 8.0-8.5 px; a clip with carts and no ball gave 6 frames at 44 px
+BALL_MIN_FRAMES = 10
+BALL_MAX_PARABOLA_RMS_PX = 20.0
 
 
 def _plot(times, t_nom, centres, flights, fits, path: Path) -> None:
@@ -63,9 +68,7 @@ def _plot(times, t_nom, centres, flights, fits, path: Path) -> None:
 
 def run(cfg: DictConfig) -> None:
     b = cfg.rigid.ball
-    video = Path(cfg.rigid.paths.video) if cfg.rigid.paths.video else shared_data_dir() / b.video
-    if not video.is_file():
-        raise RigidStageError(f"{video}: the real toss clip is missing (rigid.paths.video / rigid.ball.video)")
+    video = ball_video(cfg, RigidStageError)
     if not b.nominal_fps > 0:
         raise RigidStageError(f"rigid.ball.nominal_fps = {b.nominal_fps} is not valid: expected > 0 Hz")
     out = Path(cfg.paths.out)
@@ -127,12 +130,22 @@ def run(cfg: DictConfig) -> None:
                 lg.set_frame(int(k))
                 lg.scalar("metric/residual_px_timestamps", float(np.linalg.norm(f["persp_ts"].residuals[j])))
                 lg.scalar("metric/residual_px_constant_fps", float(np.linalg.norm(f["persp_30"].residuals[j])))
-    write_yaml(out / "ball.yaml", doc)  # the main output last
     r = doc["rms_px"]
+    worst = max(r["parabola_timestamps"], r["parabola_constant_fps"])
+    n_fit = int(sum(len(fl) for fl in flights))
+    if not worst <= BALL_MAX_PARABOLA_RMS_PX or n_fit < BALL_MIN_FRAMES:
+        # the blob tracked is not a ball in free flight (another moving object, or no ball at all): the
+        # perspective fit has parameters enough to follow a few frames of anything, the parabola does not
+        doc["warning"] = (f"the tracked blob may not be a ball in free flight ({n_fit} flight frames, parabola fit RMS "
+                          f"{worst:.1f} px; expected >= {BALL_MIN_FRAMES} frames and <= {BALL_MAX_PARABOLA_RMS_PX} px): "
+                          "check ball_sheet.png and rigid.ball.segment")
+    write_yaml(out / "ball.yaml", doc)  # the main output last
     print(f"rigid_ball: ball found in {found.sum()}/{found.size} in-view frames ({100 * found.mean():.1f} %); "
           f"{len(flights)} flights; RMS px perspective {r['perspective_timestamps']:.2f} (timestamps) / "
           f"{r['perspective_constant_fps']:.2f} (constant {b.nominal_fps:g} fps), parabola "
           f"{r['parabola_timestamps']:.2f} / {r['parabola_constant_fps']:.2f}")
+    if "warning" in doc:
+        print(f"rigid_ball: warning: {doc['warning']}", file=sys.stderr)
 
 
 main = stage_app("rigid_ball", run)

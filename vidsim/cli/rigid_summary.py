@@ -50,7 +50,6 @@ def run(cfg: DictConfig) -> None:
                                f"{d['fit']['seconds']:.1f}", str(d['fit']['n_starts']), str(d['fit']['ambiguous']),
                                eff]))
     n_ok = sum(bool(d["success"]) for _, d in rows)
-    write_text(out / "summary.csv", "\n".join(lines) + "\n")
 
     import matplotlib.pyplot as plt
 
@@ -70,6 +69,7 @@ def run(cfg: DictConfig) -> None:
     ax.legend(fontsize=7, ncol=3)
     fig.tight_layout()
     save_figure(fig, out / "summary.png")
+    write_text(out / "summary.csv", "\n".join(lines) + "\n")  # the main output last
     print(f"rigid_summary: {n_ok}/{len(rows)} throws meet every criterion -> {out / 'summary.csv'}")
 
 

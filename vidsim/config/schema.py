@@ -122,6 +122,19 @@ class RealityConfig:
 
 
 @dataclass
+class RealChessboardConfig:
+    """``calibrate_real``: a folder of real chessboard photos. The defaults are OpenCV's sample set
+    (``left*`` images, 9x6 inner corners, 25 mm squares, the aspect ratio fixed as in OpenCV's
+    reference run), which is then compared with OpenCV's reference result."""
+
+    glob: str = "left*"  # which images of paths.footage (jpg/png/bmp/tif among them)
+    board: list[int] = field(default_factory=lambda: [9, 6])  # inner corners per row, per column
+    square_size: float = 0.025  # m
+    fix_aspect: bool = True  # CALIB_FIX_ASPECT_RATIO (fx = fy)
+    compare_reference: Optional[bool] = None  # None: only for OpenCV's own set (the defaults above)
+
+
+@dataclass
 class CalibrateConfig:
     """Calibration stage: a planar target filmed at several poses."""
 
@@ -139,6 +152,7 @@ class CalibrateConfig:
     # calibration stills taken at this multiple of the video resolution (a camera's still mode;
     # the result is scaled back to the video frames): small video frames cannot resolve the target
     still_scale: float = 1.0
+    real: RealChessboardConfig = field(default_factory=RealChessboardConfig)
 
 
 @dataclass

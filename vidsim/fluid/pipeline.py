@@ -13,7 +13,7 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
-from vidsim.fluid.edit import EditSpec
+from vidsim.fluid.edit import EditSpec, EditSpecError
 from vidsim.fluid.flow import FlowMethod, estimate_flow
 from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, flicker, patch_distance_ratio,
                                   rendered_flow_epe_frames, static_mask)
@@ -42,8 +42,9 @@ def video_fields(flow: np.ndarray, spec: EditSpec) -> np.ndarray:
     """Optical flow ``(T-1, H, W, 2)`` px/frame to the edit grid ``(T-1, h, w, 2)`` nodes/frame."""
     g = downsample_flow(flow, spec.downsample)
     if g.shape[1] < spec.height or g.shape[2] < spec.width:
-        raise ValueError(f"footage gives a {g.shape[2]}x{g.shape[1]} grid at downsample={spec.downsample}, "
-                         f"smaller than the edit grid {spec.width}x{spec.height}")
+        raise EditSpecError(f"footage gives a {g.shape[2]}x{g.shape[1]} grid at downsample={spec.downsample}, "
+                            f"smaller than the edit's grid {spec.width}x{spec.height} (width, height): give the edit a "
+                            f"grid of at most {g.shape[2]}x{g.shape[1]}, or a smaller downsample")
     return g[:, :spec.height, :spec.width]
 
 

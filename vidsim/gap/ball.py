@@ -150,8 +150,10 @@ def diagnose_flights(times: np.ndarray, centres: np.ndarray, areas: np.ndarray, 
             y = f["r"] + f["Jd"] * k_hat
             rr = y - f["J0"] @ np.linalg.lstsq(f["J0"], y, rcond=None)[0]
             r0 = f["r"] - f["J0"] @ np.linalg.lstsq(f["J0"], f["r"], rcond=None)[0]
-            drag.append({"flight": f["frames"], "k_per_s": k_hat,
-                         "heldout_share": float(1.0 - (rr @ rr) / max(r0 @ r0, 1e-12))})
+            share = float(1.0 - (rr @ rr) / max(r0 @ r0, 1e-12))
+            # k_per_s is the rate the other flights imply; where it does not help the held-out flight
+            # (share <= 0) it is not identified, and its value (thousands of 1/s on the real toss) means nothing
+            drag.append({"flight": f["frames"], "k_per_s": k_hat, "heldout_share": share, "identified": share > 0})
     share_jit = (sse - sse_jit) / sse if sse > 0 else 0.0
     share_plc = (sse - sse_plc) / sse if sse > 0 else 0.0
     dk = np.concatenate(dks) if dks else np.zeros(0)

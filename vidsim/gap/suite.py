@@ -224,6 +224,20 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
     return out
 
 
+class CaseFailed(GapError):
+    """A case whose run failed at run time (its fit diverged, or left nothing to diagnose): a failed
+    score for that case, not the end of the suite (a configuration error is still one)."""
+
+
+def failed_score(case: dict, reason: str) -> dict:
+    """The score of a case that failed at run time: wrong by definition (a null case that failed has
+    not "named nothing"), its reason kept, its gaps unknown (None)."""
+    lab = case.get("label", "none")
+    return {"label": lab if isinstance(lab, str) else "+".join(lab), "named": [], "named_first": "(failed)",
+            "correct": False, "verdict": f"failed: {reason}", "failed": reason, "gap_present": False,
+            "heldout_before_px": None, "noise_floor_px": None}
+
+
 def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidRealityConfig | None = None,
              progress=None) -> tuple[RigidDiagnosis, dict, np.ndarray, Any]:
     """Film, fit (single start from the project's perturbed-guess protocol), diagnose, score.
@@ -242,7 +256,14 @@ def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidReality
     guess = perturbed_guess(th.truth, np.random.default_rng(int(case.get("seed", 0)) + 1000003))
     res = fit_throw(masks, th.times, th.camera, body, guess, {"multistart": "none"})
     t_fit = time.perf_counter() - t
-    diag = diagnose_rigid(masks, th.times, th.camera, body, res.summary(), dcfg, progress)
+    if not np.all(np.isfinite(res.states)):
+        raise CaseFailed(f"the single-start fit diverged (best objective {res.history[-1] if res.history else float('nan'):.3g})")
+    try:
+        diag = diagnose_rigid(masks, th.times, th.camera, body, res.summary(), dcfg, progress)
+    except GapError as e:
+        if str(e).startswith("fit:"):  # the fitted throw cannot be diagnosed (diverges, behind the camera)
+            raise CaseFailed(str(e)) from e
+        raise
     sc = score_case(case, diag, th.truth, body, th.times)
     sc["fit_seconds"] = t_fit
     sc["diagnose_seconds"] = diag.seconds

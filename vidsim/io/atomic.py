@@ -60,10 +60,12 @@ def replace_dir(tmp: str | os.PathLike, out: str | os.PathLike, stale: tuple = (
     tmp, out = Path(tmp), Path(out)
     for p in stale:
         Path(p).unlink(missing_ok=True)
+    # an old folder a killed swap left behind (named by the pid before 5 Dec 2026, so never found again)
+    for left in out.parent.glob(f".{out.name}.old*"):
+        shutil.rmtree(left, ignore_errors=True)
     old = None
     if out.exists():
-        old = out.with_name(f".{out.name}.old-{os.getpid()}")
-        shutil.rmtree(old, ignore_errors=True)
+        old = out.with_name(f".{out.name}.old")
         os.replace(out, old)
     os.replace(tmp, out)
     if old is not None:

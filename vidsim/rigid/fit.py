@@ -353,6 +353,11 @@ def start_orientations(R_guess: np.ndarray, symmetries: np.ndarray, mode: str = 
     return np.stack(out)
 
 
+#: below this mean IoU a fit explains too little of the silhouettes to call anything "equally good"
+#: (and ``fit_rigid`` warns that the fit failed)
+MIN_EXPLAINED_IOU = 0.5
+
+
 def distinct_alternatives(best: Candidate, alts: list[Candidate], body: BoxBody, times: np.ndarray, t0: float,
                           tie_iou: float = 0.01, distinct_deg: float = 10.0, hmax: float = 1.0 / 60.0,
                           g: float = G_EARTH) -> list[int]:
@@ -361,7 +366,11 @@ def distinct_alternatives(best: Candidate, alts: list[Candidate], body: BoxBody,
     A candidate ties when its mean IoU is within ``tie_iou`` of the best, and is distinct when its
     orientation differs from the best's by more than ``distinct_deg`` (modulo the body's
     symmetries) at some frame time. Such a pair is the seed's "two solutions" (Figure 2, row c).
+    A best fit that does not explain the silhouettes (mean IoU below ``MIN_EXPLAINED_IOU``) has no
+    "equally good" alternatives: two candidates that both miss the object are not two solutions.
     """
+    if best.mean_iou < MIN_EXPLAINED_IOU:
+        return []
     tr_best = simulate(best.params, best.q_base, body.inertia, times, t0, hmax, sensitivities=False, g=g)
     out = []
     for i, c in enumerate(alts):

@@ -175,3 +175,40 @@ def test_cloth_suite_resumes_the_same_way(tmp_path, monkeypatch):
     cstage.run(cfg("cloth.fit.alpha=0.2", "+gap.cloth.scene.budget=31"))  # the cloth node is in the key too
     assert made == [320, 302, 305, 320, 302, 320, 302, 305]
     assert json.loads((out / "suite.json").read_text())["resumed_cases"] == []
+
+
+def test_a_case_failing_at_run_time_is_a_failed_score_not_the_end_of_the_suite(tmp_path, monkeypatch, calls):
+    """A diverged single-start fit raised GapError, which the stage turned into a configuration error:
+    every rerun died at the same case and suite.json never came (resume audit, 5 Dec 2026)."""
+    made, _ = calls
+
+    def failing(case, dcfg, scene):
+        if case["seed"] == 201:
+            raise suite.CaseFailed("the single-start fit diverged")
+        made.append(case["seed"])
+        return _Diag(str(case["seed"])), _score(case["label"]), None, None
+
+    monkeypatch.setattr(suite, "run_case", failing)
+    out = tmp_path / "suite"
+    stage.run(_cfg(out))
+    summ = json.loads((out / "suite.json").read_text())
+    assert made == [202, 203]
+    a = summ["cases"]["null_a"]
+    assert a["correct"] is False and "diverged" in a["failed"] and a["named_first"] == "(failed)"
+    assert summ["headline"]["null_cases_naming_nothing"] == "1/2"  # a failed null case has not named nothing
+    assert "null_a,none,failed,False,,," in (out / "shrinkage.csv").read_text()
+    assert (out / "cases" / "null_a.png").stat().st_size > 0
+
+
+def test_a_code_change_reruns_the_cases(tmp_path, monkeypatch, calls):
+    """The cases' keys carry the package's source digest: after a code change (and --forcerun) the
+    finished output's cases were copied back with their old figures."""
+    import vidsim
+
+    made, _ = calls
+    out = tmp_path / "suite"
+    stage.run(_cfg(out))
+    assert made == [201, 202, 203]
+    monkeypatch.setattr(vidsim, "SOURCE_DIGEST", "another-version")
+    stage.run(_cfg(out))
+    assert made == [201, 202, 203, 201, 202, 203]

@@ -87,3 +87,13 @@ def _rot_to_quat(R: np.ndarray) -> np.ndarray:
 
     x, y, z, w = Rotation.from_matrix(R).as_quat()
     return np.array([w, x, y, z])
+
+
+def test_a_fit_that_explains_nothing_has_no_equally_good_alternatives():
+    """A failed fit (IoU 0 on a few-pixel ball) was reported with '2 distinct equally good
+    solutions': two candidates that both miss the object are not two solutions."""
+    from vidsim.rigid.fit import MIN_EXPLAINED_IOU, distinct_alternatives
+
+    best, alt = SimpleNamespace(mean_iou=0.0), SimpleNamespace(mean_iou=0.0)
+    assert distinct_alternatives(best, [alt], BODY, np.zeros(3), 0.0) == []
+    assert 0.0 < MIN_EXPLAINED_IOU < CRITERIA["mean_iou"]
