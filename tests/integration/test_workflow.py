@@ -122,3 +122,26 @@ def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_d
     cfg.write_text(base + "overrides: {calibrate_scene: 'calibrate.n_views=8', reality_demo: ''}\n")
     r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
     assert _planned_jobs(r.stdout + r.stderr) == {"calibrate_scene", "reality_demo", "all"}, r.stdout
+
+
+def test_your_own_recording_runs_as_a_rigid_case_without_reality_or_scoring(tmp_path):
+    """rigid.cases.<name>: {footage: <folder>} segments, fits and diagnoses your own recording in the DAG;
+    no reality job films it and nothing scores it (it has no truth). A case with both or neither of seed
+    and footage is refused at parse time."""
+    mine = tmp_path / "my_toss"
+    mine.mkdir()
+    (mine / "meta.yaml").write_text("object: {}\n")  # only its existence matters to the plan
+    cfg = tmp_path / "own.yaml"
+    cfg.write_text(f"results: {tmp_path / 'results'}\nstages: {only('rigid', 'gap')}\n"
+                   f"rigid: {{cases: {{mine: {{footage: {mine}}}}}, ball: false}}\n"
+                   "gap: {suite_cases: null, diagnose_cases: [mine], cloth_suite_cases: null, ball: false}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), "--forceall")
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-3000:]
+    assert f"paths.footage={mine} " in out and f"{tmp_path / 'results'}/rigid/mine/fit.yaml" in out
+    assert f"{tmp_path / 'results'}/gap/rigid_mine/diagnosis.json" in out
+    assert "footage/rigid_mine" not in out and "rigid/mine/score.yaml" not in out
+    cfg.write_text(f"results: {tmp_path / 'results'}\nstages: {only('rigid')}\n"
+                   f"rigid: {{cases: {{bad: {{seed: 3, footage: {mine}}}}}}}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    assert r.returncode != 0 and "rigid.cases.bad: give either seed" in r.stdout + r.stderr

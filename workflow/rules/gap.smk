@@ -89,7 +89,7 @@ rule gap_cloth_suite:
 rule diagnose_rigid:
     """Blind diagnosis of a rigid case's fit: where the gap lies, which effect, how far it shrinks."""
     input:
-        meta=f"{RESULTS}/footage/rigid_{{case}}/meta.yaml",
+        meta=rigid_meta,
         masks=f"{RESULTS}/rigid/{{case}}/masks.npz",
         fit=f"{RESULTS}/rigid/{{case}}/fit.yaml",
     output:

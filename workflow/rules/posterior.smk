@@ -35,7 +35,7 @@ if stage_enabled("posterior"):
 rule posterior_rigid:
     """emcee posterior of a rigid fit: sandwich-calibrated silhouette likelihood, 50-tau convergence check."""
     input:
-        meta=f"{RESULTS}/footage/rigid_{{case}}/meta.yaml",
+        meta=rigid_meta,
         fit=f"{RESULTS}/rigid/{{case}}/fit.yaml",
         masks=f"{RESULTS}/rigid/{{case}}/masks.npz",
     output:

@@ -1,6 +1,7 @@
 # Rigid bodies from video (issue 3): reality -> footage -> segment -> fit -> score -> summary, and
 # the real ball toss. What runs: `rigid:` in the Snakemake config (cases = {name: {seed, overrides}},
-# ball = true/false); how: Hydra (`rigid.*`, `effects.*`; per-rule `overrides: {fit_rigid: ...}`).
+# ball = true/false; a case {footage: <folder>} is your own recording: segmented, fitted, never
+# scored); how: Hydra (`rigid.*`, `effects.*`; per-rule `overrides: {fit_rigid: ...}`).
 # Layout: footage {RESULTS}/footage/rigid_{case}/ (truth and ground-truth masks beside it),
 # {RESULTS}/rigid/{case}/{masks.npz,fit.yaml,score.yaml}, {RESULTS}/rigid/summary.csv,
 # {RESULTS}/rigid/ball/ball.yaml.
@@ -13,7 +14,7 @@ ruleorder: reality_rigid > reality_demo
 
 if stage_enabled("rigid"):
     TARGETS["rigid"] = [f"{RESULTS}/rigid/{c}/{f}" for c in RIGID_CASES for f in ("overlay.mp4", "errors.png")]
-    if RIGID_CASES:
+    if RIGID_SYNTHETIC:
         TARGETS["rigid"] += [f"{RESULTS}/rigid/summary.csv", f"{RESULTS}/rigid/summary.png"]
     if RIGID.get("ball", False) and shared_available("tracklab_physics/verticalToss.webm"):
         TARGETS["rigid"] += [f"{RESULTS}/rigid/ball/ball.yaml", f"{RESULTS}/rigid/ball/ball.png"]
@@ -50,7 +51,7 @@ rule reality_rigid:
 rule segment_rigid:
     """Silhouettes from the footage alone (per-pixel background model learnt from the clip)."""
     input:
-        meta=f"{RESULTS}/footage/rigid_{{case}}/meta.yaml",
+        meta=rigid_meta,
     output:
         masks=f"{RESULTS}/rigid/{{case}}/masks.npz",
         summary=f"{RESULTS}/rigid/{{case}}/segment.yaml",
@@ -79,7 +80,7 @@ rule segment_rigid:
 rule fit_rigid:
     """Multi-start hybrid-gradient fit of the free-flight model to the silhouettes (never reads truth)."""
     input:
-        meta=f"{RESULTS}/footage/rigid_{{case}}/meta.yaml",
+        meta=rigid_meta,
         masks=f"{RESULTS}/rigid/{{case}}/masks.npz",
     output:
         fit=f"{RESULTS}/rigid/{{case}}/fit.yaml",
@@ -141,7 +142,7 @@ rule score_rigid:
 rule rigid_summary:
     """One table over the scored throws of the study."""
     input:
-        scores=expand(f"{RESULTS}/rigid/{{case}}/score.yaml", case=list(RIGID_CASES)),
+        scores=expand(f"{RESULTS}/rigid/{{case}}/score.yaml", case=RIGID_SYNTHETIC),
     output:
         csv=report(f"{RESULTS}/rigid/summary.csv", caption="../report/rigid_summary.rst", category="Rigid bodies"),
         png=report(f"{RESULTS}/rigid/summary.png", caption="../report/rigid_summary.rst", category="Rigid bodies"),
