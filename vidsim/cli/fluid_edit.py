@@ -2,7 +2,8 @@
 
 ``python -m vidsim.cli.fluid_edit fluid.edit.spec=docs/fluid_edits/waterfall_widen.yaml
 paths.footage=results/footage/fluid_waterfall fluid.edit.flow=results/fluid/flow/fluid_waterfall/flow.npz
-paths.out=results/fluid/edit/waterfall_widen``
+paths.out=results/fluid/edit/fluid_waterfall/waterfall_widen`` (the pipeline's layout:
+``fluid/edit/<footage>/<edit>/``; the optimiser's checkpoint goes beside the output folder)
 
 The edit YAML (``docs/fluid_editing.md``) names its footage with ``footage:``
 (``synthetic:<scene>`` -> ``<results>/footage/fluid_<scene>``, ``piv:<name>`` ->
