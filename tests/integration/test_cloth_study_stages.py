@@ -43,6 +43,10 @@ def study(tmp_path_factory):
         _run("vidsim.cli.cloth_reality", *common, f"paths.out={res / 'footage' / f'cloth_twin_{trial}'}",
              "cloth.reality.kind=twin", f"cloth.reality.motion={trial}", "cloth.reality.n_frames=14",
              "cloth.reality.twin_resolution=9")
+    # a second twin's held-out footage for the validation matrix: 30x stiffer bending, 10x stiffer stretch
+    _run("vidsim.cli.cloth_reality", *common, f"paths.out={res / 'footage' / 'cloth_stiff_robot'}",
+         "cloth.reality.kind=twin", "cloth.reality.motion=robot", "cloth.reality.n_frames=14",
+         "cloth.reality.twin_resolution=9", "cloth.reality.twin_params.bend=9e-05", "cloth.reality.twin_params.stretch=3000")
     for fab in ("linen", "knit"):
         _run("vidsim.cli.cloth_reality", *common, f"paths.out={res / 'footage' / f'skirt_{fab}'}",
              f"cloth.reality.fabric={fab}", "cloth.reality.object=skirt", "cloth.skirt.n_frames=10",
@@ -209,3 +213,39 @@ def test_skirt_matrix_prefers_the_matching_fabric(study):
         assert (out / f"side_by_side_{fab}.mp4").stat().st_size > 1000
     meta = yaml.safe_load((res / "footage" / "skirt_knit" / "meta.yaml").read_text())
     assert meta["object"]["kind"] == "skirt" and "corner_paths" not in meta and "fabric" not in str(meta)
+
+
+def test_validation_matrix_prefers_each_twins_own_parameters(study):
+    """validate_cloth (the seed's Figure 8 and Table 1) on two twins' held-out footage with each twin's
+    true parameters as its 'selected' set: the diagonal wins each column (the stiff set explains the
+    stiff twin's footage and the soft set the soft one's), validation.yaml agrees with matrix.csv,
+    and a params file that is no select_cloth output is named before any simulation."""
+    res = study
+    soft = yaml.safe_load((res / "footage" / "cloth_twin_robot.truth.yaml").read_text())["params"]
+    stiff = yaml.safe_load((res / "footage" / "cloth_stiff_robot.truth.yaml").read_text())["params"]
+    sel = res / "validate_sets"
+    sel.mkdir(exist_ok=True)
+    files = []
+    for name, p in (("soft", soft), ("stiff", stiff)):
+        doc = {"params": p, "trials": [f"cloth_{name}_exp1", f"cloth_{name}_exp2"], "rows": [], "start": None}
+        (sel / f"{name}.yaml").write_text(yaml.safe_dump(doc))
+        files.append(str(sel / f"{name}.yaml"))
+    out = res / "cloth" / "validate"
+    foot = f"[{res / 'footage' / 'cloth_twin_robot'},{res / 'footage' / 'cloth_stiff_robot'}]"
+    _run("vidsim.cli.cloth_validate", f"paths.results={res}", f"paths.out={out}", *MODEL,
+         "cloth.validate.fabrics=[soft,stiff]", f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage={foot}")
+    doc = yaml.safe_load((out / "validation.yaml").read_text())
+    E = np.array(doc["matrix"])
+    rows = [r.split(",") for r in (out / "matrix.csv").read_text().splitlines()[1:]]
+    assert np.allclose(np.array([[float(x) for x in r[1:]] for r in rows]), E, rtol=1e-4)
+    wins = [int(np.argmin(E[:, j]) == j) for j in range(2)]
+    assert doc["diagonal_wins"] == sum(wins) and doc["wins_per_footage"] == {"soft": wins[0], "stiff": wins[1]}
+    assert doc["diagonal_wins"] == 2, E  # each twin's truth explains its own held-out footage best
+    for f in ("matrix.png", "table1.csv", "table1.png"):
+        assert (out / f).stat().st_size > 0
+    (sel / "bad.yaml").write_text(yaml.safe_dump({"params": soft}))
+    r = subprocess.run([sys.executable, "-m", "vidsim.cli.cloth_validate", f"paths.results={res}",
+                        f"paths.out={res / 'cloth' / 'validate_bad'}", *MODEL, "cloth.validate.fabrics=[soft,stiff]",
+                        f"cloth.validate.params=[{sel / 'bad.yaml'},{files[1]}]", f"cloth.validate.footage={foot}",
+                        "log.rerun=false"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 2 and "bad.yaml: field 'trials' is missing" in r.stderr, r.stderr[-2000:]

@@ -66,14 +66,17 @@ def run(cfg: DictConfig) -> None:
     write_text(out / "table1.csv", hdr + "".join(lines))
     fig, ax = plt.subplots(figsize=(7 + 1.1 * len(shown), 0.3 * len(rows) + 0.9))
     ax.axis("off")
-    cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in shown] + [f"{errs[t]:.3g}" if t in errs else "" for t in trials] +
-             [f"{tot:.3g}" if tot is not None else ""] for fab, name, p, errs, tot in rows]
-    tb = ax.table(cellText=cells, colLabels=["fabric", "set", *shown, *[f"E {t}" for t in trials], "E sum"], loc="center",
-                  cellLoc="center")
-    tb.auto_set_font_size(False)
-    tb.set_fontsize(7)
-    tb.scale(1, 1.2)
-    ax.set_title("Table 1 (* = selected: least E sum over the trials)", fontsize=9)
+    if rows:
+        cells = [[fab, name] + [f"{float(p[k]):.3g}" for k in shown] + [f"{errs[t]:.3g}" if t in errs else "" for t in trials]
+                 + [f"{tot:.3g}" if tot is not None else ""] for fab, name, p, errs, tot in rows]
+        tb = ax.table(cellText=cells, colLabels=["fabric", "set", *shown, *[f"E {t}" for t in trials], "E sum"], loc="center",
+                      cellLoc="center")
+        tb.auto_set_font_size(False)
+        tb.set_fontsize(7)
+        tb.scale(1, 1.2)
+        ax.set_title("Table 1 (* = selected: least E sum over the trials)", fontsize=9)
+    else:  # params files without candidate rows (made by hand): said, not a crash in matplotlib's table
+        ax.text(0.5, 0.5, "Table 1: the params files list no candidates (no select_cloth rows)", ha="center")
     save_figure(fig, out / "table1.png")
     write_yaml(out / "validation.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
                                          "of": n, "wins_per_footage": dict(zip(fabrics, wins))})
