@@ -291,7 +291,9 @@ def run(cfg: DictConfig) -> None:
                       "particles in their desired sink")
         write_npz(tmp / "field.npz", field_nodes=res.field, field_px=r["edited_field_px"].astype(np.float32),
                   video_mean_px=video_mean.astype(np.float32), exits=res.exits, codes=res.codes, desired=res.desired)
-        write_json(tmp / "summary.json", summary)
+        # strict JSON: a figure that cannot be measured (flicker without a static region: NaN) is null there
+        write_json(tmp / "summary.json", {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
+                                          for k, v in summary.items()})
         flat = {k: v for k, v in summary.items() if not isinstance(v, dict)}
         flat.update({f"fraction_in_sink_{k}": v for k, v in per_sink.items()})
         write_text(tmp / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in flat.items()))

@@ -32,6 +32,8 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """
     rows: list[dict[str, Any]] = []
     for s in summaries:
+        # a figure that could not be measured is null in a summary (strict JSON) and NaN here
+        s = {k: (float("nan") if v is None else v) for k, v in s.items()}
         if "epe_px" in s and isinstance(s["epe_px"], dict):  # Middlebury
             m = s["method"]
             for scene, d in s["epe_px"].items():
