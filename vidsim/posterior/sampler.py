@@ -114,12 +114,42 @@ def autocorr_time(chain: np.ndarray) -> np.ndarray:
     return np.asarray(emcee.autocorr.integrated_time(chain, c=5, tol=0, quiet=True), float)
 
 
+class SnookerMove(emcee.moves.DESnookerMove):
+    """The differential-evolution snooker update of Ter Braak & Vrugt (2008), written as the paper has it.
+
+    emcee 3.1's ``DESnookerMove`` steps along ``u = (x - z) / sqrt(|x - z|)`` instead of the unit
+    vector, which makes the step scale with ``|x - z|`` (a scaling move about ``z`` with no matching
+    correction), and weights the Metropolis ratio by ``(d - 1) / 2`` instead of ``d - 1``. It does not
+    leave the target invariant: mixed 20 % with DE moves it sampled a 14-D standard normal with a
+    standard deviation of 0.91-0.92 (session 33, found in review; this move: 1.00,
+    ``tests/unit/posterior/test_posterior_sampler.py``). Here: ``e = (x - z) / |x - z|``,
+    ``x* = x + gamma e (e . (z1 - z2))`` and the log ratio ``(d - 1) log(|x* - z| / |x - z|)``.
+    """
+
+    def get_proposal(self, s, c, random):
+        Ns = len(s)
+        Nc = list(map(len, c))
+        ndim = s.shape[1]
+        q = np.empty_like(s)
+        metropolis = np.empty(Ns, dtype=np.float64)
+        for i in range(Ns):
+            w = np.array([c[j][random.randint(Nc[j])] for j in range(3)])
+            random.shuffle(w)
+            z, z1, z2 = w
+            delta = s[i] - z
+            norm = np.linalg.norm(delta)
+            e = delta / norm
+            q[i] = s[i] + e * self.gammas * (np.dot(e, z1) - np.dot(e, z2))
+            metropolis[i] = np.log(np.linalg.norm(q[i] - z)) - np.log(norm)
+        return q, (ndim - 1.0) * metropolis
+
+
 def _moves(de_fraction: float) -> list | None:
     if de_fraction <= 0:
         return None
     if de_fraction >= 1:
         return [(emcee.moves.DEMove(), 1.0)]
-    return [(emcee.moves.DEMove(), de_fraction), (emcee.moves.DESnookerMove(), 1.0 - de_fraction)]
+    return [(emcee.moves.DEMove(), de_fraction), (SnookerMove(), 1.0 - de_fraction)]
 
 
 def _state_arrays(rs: tuple) -> dict[str, np.ndarray]:

@@ -136,3 +136,20 @@ def test_replay_reports_a_last_partial_chunk() -> None:
     assert np.isinf(recs[0]["tau_max"]) and np.isinf(recs[1]["tau_max"]) and np.isfinite(recs[2]["tau_max"])
     assert recs[2]["acceptance"] == 1.0  # every walker moves at every step of this random walk
     assert _replay(chain[:30], SamplerConfig(n_walkers=8, chunk=50, min_steps=100, max_steps=200))[0]["step"] == 30
+
+
+def test_the_sampler_keeps_a_14d_gaussian_at_its_width() -> None:
+    """emcee 3.1's DESnookerMove does not leave the target invariant: mixed 20 % with DE moves it sampled a
+    14-D standard normal with sd 0.91-0.92 (every interval ~9 % too narrow; the 3-D test above allows 8 %
+    and saw 2 %). The project's SnookerMove follows Ter Braak & Vrugt (2008): sd within 3 %."""
+    D = 14
+
+    def lp(U):
+        return -0.5 * np.sum(np.atleast_2d(U) ** 2, axis=1)
+
+    cfg = SamplerConfig(n_walkers=32, max_steps=4000, min_steps=4000, chunk=4000, seed=0, de_fraction=0.8, init_scale=1.0)
+    ch = sample(lp, np.zeros(D), np.eye(D), cfg, None, None, vectorize=True)
+    S = ch.chain[500:].reshape(-1, D)
+    assert abs(S.std(0).mean() - 1.0) < 0.03, S.std(0).mean()
+    lo, hi = np.percentile(S, [5, 95], axis=0)
+    assert abs((hi - lo).mean() / (2 * 1.6449) - 1.0) < 0.03
