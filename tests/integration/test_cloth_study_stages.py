@@ -202,12 +202,12 @@ def test_skirt_matrix_prefers_the_matching_fabric(study):
     v = doc["verdicts"]
     assert v["linen"]["rival"] == "knit" and v["linen"]["starts"] == 2
     assert v["linen"]["margin"] == pytest.approx(E[0][0] - E[1][0], rel=1e-9)
-    # each verdict follows from its margin, standard error and the matrix (2 SE, paired)
+    # each verdict follows from its margin, standard error and cut-off (paired t; two sets: one rival)
     for j, fab in enumerate(("linen", "knit")):
         m = v[fab]
-        decided = abs(m["margin"]) > 2.0 * m["se"]
-        own_best = E[j][j] == min(E[i][j] for i in range(2))
-        assert m["verdict"] == (("won" if own_best else "lost") if decided else "undecided"), (fab, m, E)
+        assert m["cut"] > 12.0  # Student's t at 95 % with 1 degree of freedom (two starts): 12.7
+        want = "won" if m["margin"] + m["cut"] * m["se"] < 0 else "lost" if m["margin"] - m["cut"] * m["se"] > 0 else "undecided"
+        assert m["verdict"] == want, (fab, m, E)
     assert doc["decided"] == {k: sum(x["verdict"] == k for x in v.values()) for k in ("won", "lost", "undecided")}
     for fab in ("linen", "knit"):
         assert (out / f"side_by_side_{fab}.mp4").stat().st_size > 1000

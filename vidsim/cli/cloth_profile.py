@@ -50,6 +50,12 @@ def run(cfg: DictConfig) -> None:
     if rough < 0 or not float(pc.get("roughness_z", 2.0)) >= 0:
         raise ClothStageError(f"cloth.profile.roughness_points and roughness_z must be >= 0, got {rough}, "
                               f"{pc.get('roughness_z')}")
+    if int(pc.points) < 2:  # 1 or 0 points made every parameter "determined" (width 0.5 or 0)
+        raise ClothStageError(f"cloth.profile.points must be >= 2 (values per parameter), got {pc.points}")
+    if not float(pc.tol) >= 0:
+        raise ClothStageError(f"cloth.profile.tol must be >= 0 (a fraction of the estimate's error), got {pc.tol}")
+    if not 0 < float(pc.max_width) < 1:
+        raise ClothStageError(f"cloth.profile.max_width must be in (0, 1) (a fraction of the unit range), got {pc.max_width}")
     n_points = obj.space.dim * int(pc.points)
     prog = Progress(n_points, "profile_cloth" + (f" (others re-optimised, {reopt} evaluations per point)"
                                                  if reopt else ""), enabled=cfg.log.progress)

@@ -28,6 +28,7 @@ from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
+    diagonal_wins,
     fabric_matrix,
     fabric_sets,
     irradiance_to_uint8,
@@ -48,11 +49,11 @@ def run(cfg: DictConfig) -> None:
     cells: list = []
     E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True, members=cells)
     n = len(fabrics)
-    wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]
+    wins = diagonal_wins(E)
     members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
     verdicts = _verdicts(E, cells, fabrics, wins)
     tally = {k: sum(v["verdict"] == k for v in verdicts.values()) for k in ("won", "lost", "undecided")}
-    note = (f"decided by the {members} fold-seeded starts (paired, 2 SE): won {tally['won']}, lost {tally['lost']}, "
+    note = (f"decided by the {members} fold-seeded starts (paired t, 95 %, against every other set): won {tally['won']}, lost {tally['lost']}, "
             f"undecided {tally['undecided']}") if members >= 2 else ""
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
     matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png", note)
@@ -65,7 +66,8 @@ def run(cfg: DictConfig) -> None:
                 continue
             sim = np.stack([np.repeat(irradiance_to_uint8(im)[..., None], 3, axis=2) for im in r.images[0]])
             both = np.concatenate([frames, sim], axis=2)[: nv or None]
-            write_animation(out / f"side_by_side_{fab}.mp4", both, float(sk.fps))
+            # the frames are every frame_stride-th of the clip: play them at the clip's real speed
+            write_animation(out / f"side_by_side_{fab}.mp4", both, float(sk.fps) / max(1, int(cfg.cloth.model.frame_stride)))
             stills.append((fab, both[[0, len(both) // 2, len(both) - 1]]))
             tris = _tris(tr, cfg)
             for k in range(tr.features.n_frames):

@@ -17,6 +17,7 @@ from omegaconf import DictConfig
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
     ClothStageError,
+    diagonal_wins,
     fabric_matrix,
     fabric_sets,
     matrix_csv,
@@ -37,7 +38,7 @@ def run(cfg: DictConfig) -> None:
             raise ClothStageError(f"{f}: field 'trials' is missing (not a select_cloth output)")
     E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth")
     n = len(fabrics)
-    wins = [int(np.argmin(E[:, j]) == j) for j in range(n)]
+    wins = diagonal_wins(E)
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
     matrix_figure(E, fabrics, "held-out footage (robot motion)", out / "matrix.png")
     import matplotlib

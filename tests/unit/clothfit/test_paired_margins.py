@@ -49,3 +49,31 @@ def test_one_start_or_a_failed_cell_is_undecided():
     assert m[0]["margin"] == pytest.approx(-2.0)
     m = paired_margins(E, [[[1.0, 1.1], []], [[3.0, 3.1], [1.0, 1.2]]])
     assert not m[1]["decided"]
+
+
+def test_a_win_must_beat_every_other_row_not_only_the_runner_up():
+    """Own set [10, 10, 10, 10]; row A [11, 11, 11, 11] (the best other row on the mean) and row B
+    [0, 24, 0, 24], which beats the own set at half the starts: the win was 'decided' against A alone."""
+    members = [[[10.0] * 4, [0.0] * 4], [[11.0] * 4, [0.0] * 4], [[0.0, 24.0, 0.0, 24.0], [0.0] * 4]]
+    E = _matrix(members)
+    m = paired_margins(E, members)
+    assert m[0]["rival"] == 1 and m[0]["margin"] == pytest.approx(-1.0)
+    assert not m[0]["decided"]  # against B: mean -2, se 6.9: not significant
+
+
+def test_the_cut_is_students_t():
+    from scipy.stats import t
+
+    rng = np.random.default_rng(1)
+    members = [[list(rng.normal(10, 1, 8)), [0.0] * 8], [list(rng.normal(12, 1, 8)), [0.0] * 8]]
+    m = paired_margins(_matrix(members), members)
+    assert m[0]["cut"] == pytest.approx(t.ppf(0.975, 7)) and m[0]["cut"] > 2.3
+
+
+def test_a_column_whose_own_cell_failed_is_lost_not_won_by_row_0():
+    from vidsim.cli.cloth_common import diagonal_wins
+    from vidsim.optim import FAILED_SCORE
+
+    E = np.array([[FAILED_SCORE, 1.0], [FAILED_SCORE, 2.0]])  # column 0: every set failed
+    assert diagonal_wins(E) == [0, 0]
+    assert diagonal_wins(np.array([[1.0, 3.0], [2.0, 1.0]])) == [1, 1]
