@@ -49,8 +49,14 @@ def run(cfg: DictConfig) -> None:
     cands = []
     names = objs[0].space.names
     for i, d in enumerate(docs):
-        if "params" not in d and not d.get("candidates"):
-            raise ClothStageError(f"{fits[i]}: neither 'candidates' nor 'params' (not a fit_cloth output)")
+        missing = [k for k in ("params", "score") if k not in d]
+        if missing:  # checked before the evaluations: Table 1's per-fit row needs both
+            raise ClothStageError(f"{fits[i]}: field(s) {missing} missing (not a fit_cloth output)")
+        est = d.get("estimated")
+        if est is not None and set(est) != set(names):
+            # the candidates' other values would be replaced by fixed or mid-range ones without a word
+            raise ClothStageError(f"{fits[i]}: the fit estimated {list(est)}, but this selection's cloth.fit.estimate "
+                                  f"gives {list(names)}: pass the fit's own settings")
         for k, c in enumerate(d.get("candidates") or [{"theta": d["params"]}]):
             theta = c.get("theta") if isinstance(c, dict) else None
             lacking = [n for n in names if not isinstance(theta, dict) or n not in theta]

@@ -98,7 +98,7 @@ def _verdicts(E: np.ndarray, cells: list, fabrics: list[str], wins: list[int]) -
     for j, m in paired_margins(E, cells).items():
         verdict = ("won" if wins[j] else "lost") if m["decided"] else "undecided"
         out[fabrics[j]] = {"verdict": verdict, "rival": fabrics[m["rival"]], "margin": m["margin"], "se": m["se"],
-                           "starts": m["members"]}
+                           "starts": m["members"], "cut": m["cut"]}
     return out
 
 
