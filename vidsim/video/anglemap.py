@@ -159,7 +159,9 @@ class AngleMap:
     Attributes:
         theta: ``(H, W)`` stripe orientation in radians, ``(-pi/2, pi/2]``; NaN where invalid.
         strength: ``(H, W)`` oriented energy ``sqrt(C2^2 + C3^2)`` (image units squared).
-        orientedness: ``(H, W)`` ``strength / C1`` in [0, ~1]: 1 = a single orientation.
+        orientedness: ``(H, W)`` ``strength / C1``: 0 for no preferred orientation, about 1.3 for perfect
+            stripes (the G2/H2 energies' limits are 4/3 and 3/2; measured 1.317), so ``min_orientedness``
+            is a fraction of about 1.3, not of 1.
         valid: ``(H, W)`` bool, pixels with enough stripe energy to define an orientation.
         gradient: ``(H, W)`` ``|grad theta|`` in radians per pixel (pi-periodic, see
             :func:`angle_gradient`); 0 where the stencil touches an invalid pixel.

@@ -71,13 +71,18 @@ class PinholeCamera:
         return -self.R.T @ self.t
 
     def scaled(self, factor: float) -> "PinholeCamera":
-        """The same camera with the image resampled by ``factor`` (for image pyramids)."""
-        S = np.diag([factor, factor, 1.0])
-        K = S @ self.K
-        # pixel-centre convention: x' = f*(x + 0.5) - 0.5
-        K[0, 2] = factor * (self.K[0, 2] + 0.5) - 0.5
-        K[1, 2] = factor * (self.K[1, 2] + 0.5) - 0.5
-        return PinholeCamera(K, self.R, self.t, round(self.width * factor), round(self.height * factor), self.dist)
+        """The same camera with the image resampled by ``factor`` (for image pyramids).
+
+        The new image is ``round(W factor)`` x ``round(H factor)`` pixels, and each axis of K is scaled by
+        the ratio of the sizes (what ``cv2.resize`` to that size does), not by ``factor`` itself: for an
+        odd size the two differ (321 px at 0.5 is 160 px, a scale of 0.4984), half a pixel at the edge."""
+        w, h = round(self.width * factor), round(self.height * factor)
+        sx, sy = w / self.width, h / self.height
+        K = np.diag([sx, sy, 1.0]) @ self.K
+        # pixel-centre convention: x' = s*(x + 0.5) - 0.5
+        K[0, 2] = sx * (self.K[0, 2] + 0.5) - 0.5
+        K[1, 2] = sy * (self.K[1, 2] + 0.5) - 0.5
+        return PinholeCamera(K, self.R, self.t, w, h, self.dist)
 
     # ------------------------------------------------------------- projection
     def to_camera(self, X: np.ndarray) -> np.ndarray:

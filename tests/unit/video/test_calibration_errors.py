@@ -100,3 +100,21 @@ def test_symmetric_boards_are_refused_for_a_world_frame():
         ChessboardTarget(pattern_size=(8, 6))
     with pytest.raises(CalibrationError, match=r"\(6, 4\).*180 degrees"):
         ProjectorPattern(pattern_size=(6, 4))
+
+
+def test_scaled_camera_matches_the_resized_image_for_odd_sizes():
+    """A 321 x 241 camera at 0.5 gives a 160 x 120 image (cv2.resize's scale 160/321 per axis); K was
+    scaled by exactly 0.5, so the right-most pixel projected 0.5 px off the resized image's."""
+    import numpy as np
+
+    from vidsim.video.camera import PinholeCamera, intrinsics
+
+    cam = PinholeCamera(intrinsics(300.0, None, 160.0, 120.0), width=321, height=241)
+    half = cam.scaled(0.5)
+    assert (half.width, half.height) == (160, 120)
+    X = np.array([[0.3, -0.2, 2.0], [-0.5, 0.4, 3.0]])
+    u, u2 = cam.project(X), half.project(X)
+    sx, sy = 160 / 321, 120 / 241
+    assert np.allclose(u2[:, 0], sx * (u[:, 0] + 0.5) - 0.5) and np.allclose(u2[:, 1], sy * (u[:, 1] + 0.5) - 0.5)
+    even = PinholeCamera(intrinsics(300.0, None, 159.5, 119.5), width=320, height=240).scaled(0.5)
+    assert np.isclose(even.K[0, 0], 150.0) and np.isclose(even.K[0, 2], 79.5)

@@ -59,3 +59,26 @@ def test_real_collision_footage_has_moving_carts(shared_data):
     # the carts move through most of the clip; the static scene stays background
     assert (area > 1000).mean() > 0.9
     assert area.max() < 0.25 * m[0].size
+
+
+def test_an_exposure_change_is_not_counted_as_noise(rng):
+    """Half the frames at 15 % more exposure (a webcam's auto-exposure): the background's noise scale
+    was taken from uncorrected frames (sigma 16 DN instead of the 2 DN floor) and a 100-DN object lost
+    12 % of its area; the rim test also used the uncorrected background (review, 5 Dec 2026)."""
+    from vidsim.video.segment import SegmentConfig, fit_background, segment
+
+    T, H, W = 12, 80, 80
+    yy, xx = np.mgrid[:H, :W]
+    frames, true = [], []
+    for k in range(T):
+        img = np.full((H, W, 3), 150.0)
+        disc = (xx - (10 + 5 * k)) ** 2 + (yy - 40) ** 2 <= 12 ** 2
+        img[disc] = 50.0
+        frames.append(np.clip(img * (1.15 if k % 2 else 1.0) + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8))
+        true.append(disc)
+    f = np.stack(frames)
+    assert np.median(fit_background(f, cfg=SegmentConfig()).sigma) < 2.5
+    masks = segment(f)
+    inter = (masks & np.stack(true)).sum((1, 2))
+    union = (masks | np.stack(true)).sum((1, 2))
+    assert np.all(inter / union > 0.97), inter / union
