@@ -25,7 +25,9 @@ def throw_data(seed: int, drag: float = 0.0, cache: str | os.PathLike = "/tmp/vi
         drag: multiplier of physical air drag and angular drag in the reality (0: no effects).
         cache: folder of the cached throws.
     """
-    path = Path(cache) / f"throw_{seed}_drag{drag:g}.npz"
+    import vidsim
+
+    path = Path(cache) / f"throw_{seed}_drag{drag:g}_{vidsim.SOURCE_DIGEST[:12]}.npz"  # other code films anew
     if path.is_file():
         z = np.load(path, allow_pickle=False)
         shape = tuple(int(v) for v in z["shape"])

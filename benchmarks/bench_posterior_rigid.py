@@ -108,7 +108,10 @@ def laplace_rows(seed: int, drag: float, models: list[str], d: dict, cam, body, 
 
 def cached_fit(seed: int, drag: float, d: dict, cam, body, truth: dict):
     """The fit of a throw (pickled in the throw cache: rerunning the benchmark does not refit)."""
-    path = os.path.join("/tmp/vidsim_posterior_throws", f"fit_{seed}_drag{drag:g}.pkl")
+    import vidsim
+
+    # keyed by the package's source digest too: a fit made by other code must not stand in (review, 5 Dec 2026)
+    path = os.path.join("/tmp/vidsim_posterior_throws", f"fit_{seed}_drag{drag:g}_{vidsim.SOURCE_DIGEST[:12]}.pkl")
     if os.path.isfile(path):
         with open(path, "rb") as fh:
             return pickle.load(fh)

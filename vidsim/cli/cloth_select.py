@@ -1,8 +1,8 @@
 """Stage ``select_cloth``: cross-trial selection of one fabric's parameters (seed Table 1).
 
 ``python -m vidsim.cli.cloth_select paths.out=results/cloth/select/linen
-+fits=[fit1.yaml,fit2.yaml] +footage=[footage1,footage2]`` (Snakemake passes them as
-``cloth.select.fits`` / ``cloth.select.footage``).
+cloth.select.fits=[fit1.yaml,fit2.yaml] cloth.select.footage=[footage1,footage2]`` (with the fits' own
+``cloth.*`` settings: their estimated set and model).
 
 Each trial's best distinct candidates (from its ``fit.yaml``) are evaluated on the *other* trial
 without re-optimising; the candidate with the least E1 + E2 is chosen. Writes ``params.yaml``

@@ -90,7 +90,7 @@ def run(cfg: DictConfig) -> None:
            "parameters": rows, "checks": checks, "not_determined": [n for n, r in rows.items() if r["determined"] is False]}
     write_text(out / "errors.csv", "parameter,estimate,truth,relative_error,estimated,determined,interval_lo,"
                "interval_hi\n" + "".join(_csv_row(n, r) for n, r in rows.items()))
-    _figure(rows, ratio, out / "errors.png", None if scale is None else scale["ratio_q90"])
+    _figure(rows, ratio, out / "errors.png", None if scale is None else scale["ratio_q90"], float(cfg.cloth.twin.rel_tol))
     write_yaml(out / "score.yaml", doc)
     if scale is not None:
         print(f"score_cloth_twin: the true parameters moved by exp(N(0, {scale['sigma']:g})) give held-out ratios "
@@ -137,7 +137,7 @@ def _csv_row(name: str, r: dict) -> str:
             f"{lo},{hi}\n")
 
 
-def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None) -> None:
+def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None, rel_tol: float = 0.25) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -148,7 +148,7 @@ def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None) -> N
     col = ["C1" if not rows[n]["estimated"] else ("0.6" if rows[n]["determined"] is False else "C0") for n in names]
     fig, ax = plt.subplots(figsize=(7, 3))
     ax.bar(range(len(names)), rel, color=col)
-    ax.axhline(0.25, color="C3", lw=0.8, ls="--")
+    ax.axhline(rel_tol, color="C3", lw=0.8, ls="--")  # the criterion (cloth.twin.rel_tol)
     ax.set_yscale("symlog", linthresh=0.1)
     ax.set_xticks(range(len(names)), names, rotation=40, ha="right", fontsize=7)
     ax.set_ylabel("|estimate - truth| / truth")
