@@ -3,7 +3,9 @@
 Reality places a large printed chessboard in the scene: at one reference pose (which defines the
 world frame, as the seed's Vicon-marked grid did: vertical, facing the camera, z up) and at
 ``calibrate.n_views`` further poses; with ``projector.enabled`` also ``calibrate.n_projector_views``
-poses where the projector casts a checker onto the board's blank part. Only the rendered images
+poses where the projector casts a checker onto the board's blank part (at positions spread over
+the projector's image, ``calibrate.projector_pattern_spread``; the board is held upside down where
+that keeps its print in view). Only the rendered images
 go to the estimator (:func:`calibrate_scene`); the true devices from the config are read
 afterwards, to score the result in ``summary.csv``.
 """
@@ -20,7 +22,7 @@ from vidsim.config import camera_from_config, projector_from_config
 from vidsim.errors import VidsimError
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log import make_logger
-from vidsim.video.calibration import ChessboardTarget, ProjectorPattern, calibrate_scene, film_calibration_target
+from vidsim.video.calibration import ChessboardTarget, ProjectorPattern, calibrate_scene, film_calibration_target, spread_patterns
 from vidsim.video.camera import PinholeCamera
 
 # 80 mm squares, with a blank area right of the print for the projector's pattern
@@ -67,6 +69,11 @@ def run(cfg: DictConfig) -> None:
     proj_true = projector_from_config(cfg.projector) if cfg.projector.enabled else None
     pattern = (ProjectorPattern(width=proj_true.width, height=proj_true.height, square_px=int(cfg.calibrate.projector_square_px))
                if proj_true is not None else None)
+    spread = float(cfg.calibrate.projector_pattern_spread)
+    if not (np.isfinite(spread) and 0.0 <= spread <= 1.0):
+        raise VidsimError(f"calibrate.projector_pattern_spread = {spread!r} is not valid: expected 0 (centred) to 1 (to the image's edges)")
+    if pattern is not None and spread > 0 and cfg.calibrate.n_projector_views > 0:
+        pattern = spread_patterns(pattern, int(cfg.calibrate.n_projector_views), spread)  # one per projector view
     rng = np.random.default_rng(cfg.seed + 101)
     target = target_for(float(cfg.calibrate.square_size), cfg.calibrate.target_blank_width)
     origin = np.asarray(cfg.calibrate.target_origin, float)

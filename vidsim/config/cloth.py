@@ -77,6 +77,7 @@ class ClothCalibrationConfig:
     max_rms_px: float = 0.5
     target_origin: list[float] = _l(-0.2, 0.0, 1.0)  # m, reference board's first printed corner
     projector_square_px: int = 10  # checker square the projector casts, projector pixels
+    projector_pattern_spread: float = 0.5  # checker positions over the projector image (calibrate.projector_pattern_spread)
     target_blank_width: float = 0.25  # m, blank board area right of the print (projector pattern)
     still_scale: float = 2.0  # calibration stills at 2x the video resolution (640x480)
 

@@ -148,6 +148,10 @@ class CalibrateConfig:
     square_size: float = 0.08
     target_origin: list[float] = _v3(-0.9, 0.3, 1.6)
     projector_square_px: int = 28  # checker square the projector casts, projector pixels
+    # where the projector casts its checker in each projector view: 0 always at the image's centre
+    # (its intrinsics then poorly determined), > 0 a 3 x 3 grid of positions reaching this fraction
+    # of the way to the image's edges (docs/calibration.md, "Projector")
+    projector_pattern_spread: float = 0.5
     target_blank_width: Optional[float] = None  # m, blank area right of the print (None: scaled default)
     # calibration stills taken at this multiple of the video resolution (a camera's still mode;
     # the result is scaled back to the video frames): small video frames cannot resolve the target

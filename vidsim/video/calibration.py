@@ -37,7 +37,7 @@ Pixel convention everywhere: (0, 0) is the centre of the top-left pixel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import cv2
@@ -378,6 +378,44 @@ class ProjectorCalibration:
 # --------------------------------------------------------------------------------------------
 # Detection
 # --------------------------------------------------------------------------------------------
+def spread_patterns(base: ProjectorPattern, n: int, extent: float = 1.0) -> list[ProjectorPattern]:
+    """``n`` copies of ``base`` whose checkers sit at positions spread over the projector image.
+
+    A checker always cast at the image's centre covers a few percent of the projector's image,
+    so its focal lengths and principal point are poorly determined even when the reprojection
+    error is small. The copies visit a 3 x 3 grid of origins from one corner of the image (quiet
+    zone included) to the other, centre first, then the corners, then the edge midpoints, and
+    round again when ``n > 9``; ``extent`` (0-1] shrinks the grid about the image centre (1: the
+    checker reaches the image's edges). The positions are an input the estimator knows (what was
+    cast), like the pattern itself.
+    """
+    if int(n) < 1:
+        raise CalibrationError(f"spread_patterns: n must be >= 1, got {n}")
+    if not (0.0 < float(extent) <= 1.0):
+        raise CalibrationError(f"spread_patterns: extent must be in (0, 1], got {extent}")
+    nx, ny = base.pattern_size
+    s = base.square_px
+    u_hi, v_hi = base.width - (nx + 2) * s, base.height - (ny + 2) * s  # quiet zone inside the image
+    uc, vc = (s + u_hi) / 2, (s + v_hi) / 2
+    us = [int(round(uc + f * extent * (u_hi - s) / 2)) for f in (-1, 0, 1)]
+    vs = [int(round(vc + f * extent * (v_hi - s) / 2)) for f in (-1, 0, 1)]
+    order = [(1, 1), (0, 0), (2, 2), (2, 0), (0, 2), (1, 0), (1, 2), (0, 1), (2, 1)]
+    return [replace(base, origin=(us[i], vs[j])) for i, j in (order[k % len(order)] for k in range(int(n)))]
+
+
+def _patterns_per_view(pattern: ProjectorPattern | Sequence[ProjectorPattern | None] | None, n: int, what: str) -> list:
+    """One pattern (or ``None``) per view: a single pattern is cast in every view."""
+    if pattern is None or isinstance(pattern, ProjectorPattern):
+        return [pattern] * n
+    pats = list(pattern)
+    if len(pats) != n:
+        raise CalibrationError(f"{what}: {len(pats)} projector patterns for {n} views (one per view, or a single pattern, needed)")
+    for i, p in enumerate(pats):
+        if p is not None and not isinstance(p, ProjectorPattern):
+            raise CalibrationError(f"{what}: pattern of view {i} is a {type(p).__name__}, expected a ProjectorPattern")
+    return pats
+
+
 def _as_gray_u8(img: np.ndarray, name: str) -> np.ndarray:
     a = np.asarray(img)
     if a.ndim == 3 and a.shape[2] in (3, 4):
@@ -749,10 +787,11 @@ def calibrate_projector(
     camera: CalibrationResult,
     target_images: Sequence[np.ndarray],
     pattern_images: Sequence[np.ndarray | None],
-    pattern: ProjectorPattern,
+    pattern: ProjectorPattern | Sequence[ProjectorPattern | None],
     image_names: Sequence[str] | None = None,
     flags: int = PROJECTOR_FLAGS,
     min_views: int = 3,
+    joint: bool | None = None,
 ) -> ProjectorCalibration:
     """Calibrate a projector from its chessboard pattern cast onto the target (inverse camera).
 
@@ -768,10 +807,20 @@ def calibrate_projector(
         target_images: per view, the target with the projector dark.
         pattern_images: per view, the same pose and exposure with the pattern projected
             (``None`` for a view without one).
-        pattern: the projected pattern (projector resolution, corners in projector pixels).
+        pattern: the projected pattern (projector resolution, corners in projector pixels), or
+            one per view (``None`` where no pattern is cast), or one per view with a pattern
+            image, in order (e.g. :func:`spread_patterns` as given to
+            :func:`film_calibration_target`); all of one projector resolution.
         image_names: names of the views (default ``projector[i]``).
         flags: ``cv2.CALIB_*`` flags for the projector intrinsics (default :data:`PROJECTOR_FLAGS`).
         min_views: fewest views with both the board and the projected pattern found.
+        joint: refine the intrinsics and the one camera -> projector pose together on all views'
+            points (kept only where it lowers the reprojection error). ``None`` (default): when
+            the views' patterns sit at different places in the projector's image. With one
+            pattern at one place every view's points lie in one narrow bundle of projector rays,
+            along which focal length and distance trade off, and the joint refinement drifts
+            along that valley (27 mm off in a test scene where the per-view estimate is 0.5 mm
+            off); spread over the image they determine both (docs/calibration.md, "Projector").
 
     Returns:
         Projector intrinsics and camera -> projector pose.
@@ -789,14 +838,24 @@ def calibrate_projector(
     names = [str(n) for n in image_names]
     if len(names) != len(target_images):
         raise CalibrationError(f"projector: {len(target_images)} views but {len(names)} image_names")
+    n_lit = sum(img is not None for img in pattern_images)
+    if not isinstance(pattern, ProjectorPattern) and pattern is not None and len(list(pattern)) == n_lit != len(target_images):
+        it = iter(pattern)  # one pattern per view with a pattern image, in order
+        pattern = [next(it) if img is not None else None for img in pattern_images]
+    pats = _patterns_per_view(pattern, len(target_images), "projector")
+    lit = [p for p, img in zip(pats, pattern_images) if img is not None]
+    if any(p is None for p in lit):
+        raise CalibrationError("projector: a view with a pattern image has no pattern (None)")
+    if len({(p.width, p.height) for p in lit}) > 1:
+        raise CalibrationError(f"projector: the views' patterns disagree on the projector's resolution: {sorted({(p.width, p.height) for p in lit})}")
     w, h = camera.image_size
     obj_b, img_p, pts_c, used, rejected = [], [], [], [], {}
     poses_bc: list[tuple[np.ndarray, np.ndarray]] = []
-    corners_p = pattern.corners()
-    nx, ny = pattern.pattern_size
-    for n, timg, pimg in zip(names, target_images, pattern_images):
+    for n, timg, pimg, pat in zip(names, target_images, pattern_images, pats):
         if pimg is None:
             continue
+        corners_p = pat.corners()
+        nx, ny = pat.pattern_size
         pose = board_pose(camera, timg, n)
         if pose is None:
             rejected[n] = f"printed {camera.pattern_size[0]}x{camera.pattern_size[1]} board not found"
@@ -823,7 +882,7 @@ def calibrate_projector(
             f"projector: only {len(used)} view(s) with board and projected pattern found ({', '.join(used) or 'none'}), "
             f"need at least {min_views}; rejected: {', '.join(f'{k} ({v})' for k, v in rejected.items()) or 'none'}"
         )
-    size_p = (pattern.width, pattern.height)
+    size_p = (lit[0].width, lit[0].height)
     obj32 = [np.column_stack([o[:, :2], np.zeros(len(o))]).astype(np.float32) for o in obj_b]
     img32 = [p.astype(np.float32).reshape(-1, 1, 2) for p in img_p]
     _five_coefficient_model(flags, "projector calibration")
@@ -845,6 +904,29 @@ def calibrate_projector(
     Xall = np.concatenate(pts_c)
     uall = np.concatenate(img_p)
     rvec, tvec = cv2.solvePnPRefineLM(Xall, uall, Kp, dp, rvec, tvec)
+    if joint is None:
+        joint = len({p.origin if p.origin is not None else p._origin() for p in lit}) > 1
+    if joint:
+        # One projector pose serves every view: refine intrinsics and that pose together on all
+        # views' points in the camera frame (a non-planar 3-D target), instead of intrinsics from
+        # each view's small planar patch with a free pose per view.
+        # Kept only when it lowers the reprojection error (from a poor start it can run away).
+        def _rms(K_, d_, r_, t_) -> float:
+            pr, _ = cv2.projectPoints(Xall, r_, t_, K_, d_)
+            e = np.sum((pr.reshape(-1, 2) - uall) ** 2, axis=1)
+            return float(np.sqrt(e.mean())) if np.all(np.isfinite(e)) else np.inf
+
+        try:
+            _, Kj, dj, rv, tv = cv2.calibrateCamera(
+                [Xall.astype(np.float32)], [uall.astype(np.float32).reshape(-1, 1, 2)], size_p, Kp.copy(), dp.copy(),
+                rvecs=[rvec.copy()], tvecs=[tvec.copy()], flags=flags | cv2.CALIB_USE_INTRINSIC_GUESS)
+            dj = np.pad(np.asarray(dj, float).ravel()[:5], (0, max(0, 5 - np.asarray(dj).size)))
+            rj, tj = np.asarray(rv[0], float).reshape(3, 1), np.asarray(tv[0], float).reshape(3, 1)
+            ok = np.all(np.isfinite(Kj)) and Kj[0, 0] > 0 and Kj[1, 1] > 0 and _rms(Kj, dj, rj, tj) <= _rms(Kp, dp, rvec, tvec)
+        except cv2.error:
+            ok = False
+        if ok:
+            Kp, dp, rvec, tvec = Kj, dj, rj, tj
     Rp, _ = cv2.Rodrigues(rvec)
     proj, _ = cv2.projectPoints(Xall, rvec, tvec, Kp, dp)
     res = np.sum((proj.reshape(-1, 2) - uall) ** 2, axis=1)
@@ -888,7 +970,7 @@ def calibrate_scene(
     projector_images: Sequence[np.ndarray | None] | None = None,
     *,
     target: ChessboardTarget = ChessboardTarget(),
-    pattern: ProjectorPattern | None = None,
+    pattern: ProjectorPattern | Sequence[ProjectorPattern | None] | None = None,
     reference_view: int | str = 0,
     image_names: Sequence[str] | None = None,
     flags: int = 0,
@@ -902,7 +984,8 @@ def calibrate_scene(
         projector_images: images at the same poses with the projector casting ``pattern``
             (``None`` entries for views without), or ``None`` when the scene has no projector.
         target: geometry of the printed target.
-        pattern: the projected pattern (required with ``projector_images``).
+        pattern: the projected pattern (required with ``projector_images``), or one per view
+            (see :func:`calibrate_projector`).
         reference_view: the view (index into the used views or image name) whose target pose
             defines the world frame.
         image_names: names of the views (default ``calibration[i]``).
@@ -950,6 +1033,7 @@ def board_poses_facing_camera(
     min_tilt_deg: float = 10.0,
     max_roll_deg: float = 10.0,
     jitter: float = 0.03,
+    roll_offset_deg: float = 0.0,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Random board -> camera poses with the printed face towards the camera.
 
@@ -957,7 +1041,8 @@ def board_poses_facing_camera(
     metres, jittered by up to ``jitter`` m per axis). The board is tilted out of the
     fronto-parallel plane by an angle uniform in [``min_tilt_deg``, ``max_tilt_deg``] about a
     random in-plane axis (fronto-parallel views do not constrain the focal length), and rolled
-    about the viewing axis by up to ``max_roll_deg``.
+    about the viewing axis by up to ``max_roll_deg`` about ``roll_offset_deg`` (180: the board
+    held upside down).
 
     Returns:
         ``n`` pairs ``(R, t)`` with ``X_cam = R X_board + t``.
@@ -968,7 +1053,7 @@ def board_poses_facing_camera(
     for _ in range(int(n)):
         tilt = np.deg2rad(rng.uniform(min_tilt_deg, max_tilt_deg))
         phi = rng.uniform(0, 2 * np.pi)
-        roll = np.deg2rad(rng.uniform(-max_roll_deg, max_roll_deg))
+        roll = np.deg2rad(roll_offset_deg + rng.uniform(-max_roll_deg, max_roll_deg))
         R_tilt, _ = cv2.Rodrigues(tilt * np.array([np.cos(phi), np.sin(phi), 0.0]))
         R_roll, _ = cv2.Rodrigues(np.array([0.0, 0.0, roll]))
         R = R_tilt @ R_roll
@@ -1012,7 +1097,7 @@ def render_target_views(
     rng: np.random.Generator,
     *,
     projector: PinholeCamera | None = None,
-    pattern: ProjectorPattern | None = None,
+    pattern: ProjectorPattern | Sequence[ProjectorPattern | None] | None = None,
     ambient: float = 0.55,
     projector_gain: float = 0.45,
     blur_sigma_px: float = 0.7,
@@ -1035,7 +1120,7 @@ def render_target_views(
         target: the target.
         rng: random generator for the noise.
         projector: the projector with ``R, t`` camera frame -> projector frame; ``None``: dark.
-        pattern: the projected pattern (required with ``projector``).
+        pattern: the projected pattern (required with ``projector``), or one per pose.
         ambient: ambient irradiance (exposure-scaled, 1.0 saturates white paper).
         projector_gain: projector irradiance at normal incidence.
         blur_sigma_px: optical blur, pixels (0: none).
@@ -1046,14 +1131,15 @@ def render_target_views(
     Returns:
         V images (H, W) uint8.
     """
-    if projector is not None and pattern is None:
-        raise CalibrationError("render_target_views: a projector needs a 'pattern'")
+    pats = _patterns_per_view(pattern, len(poses), "render_target_views")
+    if projector is not None and any(p is None for p in pats):
+        raise CalibrationError("render_target_views: a projector needs a 'pattern' for every pose")
     if supersample < 1:
         raise CalibrationError(f"render_target_views: supersample must be >= 1, got {supersample}")
     rays = _supersampled_rays(camera, int(supersample))
     H, W, ss = camera.height, camera.width, int(supersample)
     images = []
-    for R, t in poses:
+    for (R, t), pat in zip(poses, pats):
         R = np.asarray(R, float)
         t = np.asarray(t, float).ravel()
         Xc, Xb = intersect_board(rays, R, t)
@@ -1076,7 +1162,7 @@ def render_target_views(
                 vp = Kp[1, 1] * y + Kp[1, 2]
                 inside = hit & (z > 0) & np.isfinite(up) & np.isfinite(vp)
                 # footprint of the camera sample in projector pixels
-                val = np.where(inside, pattern.radiance(np.where(inside, up, -1e6), np.where(inside, vp, -1e6), foot * Kp[0, 0] / np.abs(z)), 0.0)
+                val = np.where(inside, pat.radiance(np.where(inside, up, -1e6), np.where(inside, vp, -1e6), foot * Kp[0, 0] / np.abs(z)), 0.0)
             # cos of incidence: board normal vs direction to the projector centre (camera frame)
             to_p = (-projector.R.T @ projector.t) - Xc
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -1109,7 +1195,7 @@ def film_calibration_target(
     *,
     target: ChessboardTarget = ChessboardTarget(),
     projector: PinholeCamera | None = None,
-    pattern: ProjectorPattern | None = None,
+    pattern: ProjectorPattern | Sequence[ProjectorPattern] | None = None,
     n_views: int = 10,
     n_projector_views: int = 8,
     board_to_world: np.ndarray | None = None,
@@ -1133,7 +1219,8 @@ def film_calibration_target(
         rng: random generator (poses and noise).
         target: the calibration target.
         projector: the projector in world coordinates (``R, t`` world -> projector), or ``None``.
-        pattern: the pattern it casts (required with ``projector``).
+        pattern: the pattern it casts (required with ``projector``), or one per projector view
+            (e.g. :func:`spread_patterns`).
         n_views: camera-only views.
         n_projector_views: views with the pattern projected.
         board_to_world: (4, 4) pose of the target in the world for the reference view, or
@@ -1188,23 +1275,30 @@ def film_calibration_target(
         # projector relative to the camera: x_p = R_pc x_c + t_pc
         R_pc = projector.R @ camera.R.T
         proj_cam = PinholeCamera(projector.K, R_pc, projector.t - R_pc @ camera.t, projector.width, projector.height, projector.dist)
-        q = pattern.corners()
-        sq = pattern.square_px
-        frame = np.array([q.min(0) - sq, [q.max(0)[0] + sq, q.min(0)[1] - sq], q.max(0) + sq, [q.min(0)[0] - sq, q.max(0)[1] + sq]])
+        view_patterns = _patterns_per_view(pattern, int(n_projector_views), "film_calibration_target")
         x0, x1, y0, y1 = target.board_extent
         blank = (nx * s + s, x1, y0, y1)
         blank_centre = np.array([(blank[0] + blank[1]) / 2, (blank[2] + blank[3]) / 2, 0.0])
         fp = projector.K[0, 0]
-        span_px = np.ptp(frame, axis=0)
-        d = 0.7 * min((blank[1] - blank[0]) * fp / span_px[0], (blank[3] - blank[2]) * projector.K[1, 1] / span_px[1])
-        # aim: the pattern centre's projector ray at distance d from the projector (camera frame)
-        c = frame.mean(0)
-        ray = np.linalg.solve(projector.K, np.array([c[0], c[1], 1.0]))
-        ray /= np.linalg.norm(ray)
-        aim = proj_cam.R.T @ (d * ray - proj_cam.t)
         for i in range(int(n_projector_views)):
-            for _ in range(max_tries):
-                R, t = board_poses_facing_camera(1, rng, blank_centre, aim, max_tilt_deg, min_tilt_deg, jitter=0.03)[0]
+            q = view_patterns[i].corners()
+            sq = view_patterns[i].square_px
+            frame = np.array([q.min(0) - sq, [q.max(0)[0] + sq, q.min(0)[1] - sq], q.max(0) + sq, [q.min(0)[0] - sq, q.max(0)[1] + sq]])
+            span_px = np.ptp(frame, axis=0)
+            d = 0.7 * min((blank[1] - blank[0]) * fp / span_px[0], (blank[3] - blank[2]) * projector.K[1, 1] / span_px[1])
+            # aim: this view's pattern centre's projector ray at distance d from the projector (camera
+            # frame); an off-centre pattern may need the board nearer the projector, or held upside
+            # down (its blank part left of the print), to keep the print in the camera's view, so
+            # later tries draw the distance from [0.4, 1] d and turn the board by 0 or 180 degrees
+            c = frame.mean(0)
+            ray = np.linalg.solve(projector.K, np.array([c[0], c[1], 1.0]))
+            ray /= np.linalg.norm(ray)
+            for k in range(max_tries):
+                early = k < max_tries // 4
+                dk = d if early else d * rng.uniform(0.4, 1.0)
+                aim = proj_cam.R.T @ (dk * ray - proj_cam.t)
+                R, t = board_poses_facing_camera(1, rng, blank_centre, aim, max_tilt_deg, min_tilt_deg, jitter=0.03,
+                                                 roll_offset_deg=0.0 if early else 180.0 * rng.integers(2))[0]
                 if not _visible(camera, R, t, printed, 4.0):
                     continue
                 rays_p = np.linalg.solve(projector.K, np.column_stack([frame, np.ones(4)]).T).T  # projector frame
@@ -1228,7 +1322,7 @@ def film_calibration_target(
     projector_images: list[np.ndarray | None] = [None] * len(poses)
     idx = [i for i, w in enumerate(with_projector) if w]
     if idx:
-        lit = render_target_views(camera, [poses[i] for i in idx], target, rng, projector=proj_cam, pattern=pattern, **kw)
+        lit = render_target_views(camera, [poses[i] for i in idx], target, rng, projector=proj_cam, pattern=view_patterns, **kw)
         for i, im in zip(idx, lit):
             projector_images[i] = im
     return target_images, projector_images, names
