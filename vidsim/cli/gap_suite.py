@@ -41,7 +41,11 @@ def headline(scores: dict[str, dict]) -> dict:
     nulls = [s for s in scores.values() if s["label"] == "none"]
     combos = [s for s in scores.values() if "+" in s["label"]]
     ool = [s for s in scores.values() if s["label"] == "unexplained"]
-    clos = [c for s in single for c in s.get("closure", {}).values()]
+    # one entry per single case's true effect: None (never refitted, or no excess left above the
+    # floor) counts as not closing; a case without any closure entry (failed, or scored before
+    # 5 Dec 2026 without its unrefitted effect) counts as one None
+    clos_all = [c for s in single for c in (s.get("closure") or {None: None}).values()]
+    clos = [c for c in clos_all if c is not None]
     rec = [r["rel_error"] for s in single for r in s.get("recovery", {}).values()]
     return {
         "named_first_correct": f"{sum(s['correct'] for s in single)}/{len(single)}",
@@ -49,7 +53,9 @@ def headline(scores: dict[str, dict]) -> dict:
         "combined_both_named": f"{sum(s['correct'] for s in combos)}/{len(combos)}",
         "out_of_library_reported_unexplained": f"{sum(s['correct'] and s['gap_present'] for s in ool)}/{len(ool)}",
         "closure_of_true_effect_median": float(np.median(clos)) if clos else None,
-        "closure_at_least_50pct": f"{sum(c >= 0.5 for c in clos)}/{len(clos)}",
+        "closure_at_least_50pct": f"{sum(c >= 0.5 for c in clos)}/{len(clos_all)}",
+        "closure_not_measured": sum(c is None for c in clos_all),
+        "closure_note": "time_jitter's closure is of the training excess (its held-out times are fitted per frame)",
         "strength_within_30pct": f"{sum(r <= 0.3 for r in rec)}/{len(rec)}",
     }
 
@@ -231,8 +237,8 @@ def plot_failed(path: Path, name: str, reason: str) -> None:
     save_figure(fig, path)
 
 
-def _px(v) -> str:
-    return "" if v is None else f"{v:.2f}"
+def _px(v, fmt: str = "{:.2f}") -> str:
+    return "" if v is None else fmt.format(v)
 
 
 def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:
@@ -253,7 +259,7 @@ def write_shrinkage(scores: dict[str, dict], folder: Path) -> None:
             lines.append(",".join(str(x) for x in (
                 n, s["label"], "+".join(s["named"]) or ("failed" if s.get("failed") else "none"), s["correct"],
                 _px(s["heldout_before_px"]), _px(s["noise_floor_px"]), e, f"{s.get('heldout_after_px', {}).get(e, float('nan')):.2f}",
-                f"{s.get('closure', {}).get(e, float('nan')):.3f}",
+                _px(s.get("closure", {}).get(e), "{:.3f}"),
                 (" ".join(f"{v:.4g}" for v in est) if isinstance(est, list) else (f"{est:.4g}" if est != "" else "")),
                 (" ".join(f"{v:.4g}" for v in tru) if isinstance(tru, list) else (f"{tru:.4g}" if tru != "" else "")),
                 (f"{r['rel_error']:.3f}" if r else ""),

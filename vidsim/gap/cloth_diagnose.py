@@ -73,7 +73,7 @@ from scipy.optimize import least_squares
 import vidsim
 from vidsim.cloth import ClothParams, ClothStepError
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup, hermite, soft_coverage
-from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, joint_pair_search
+from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, frame_sandwich_cov, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
 from vidsim.io.atomic import atomic_path
@@ -446,6 +446,12 @@ class Problem(RigidProblem):
             return np.full(len(self.frames) * len(MOMENTS), BAD_MOMENT_PX)
         return (silhouette_moments(a, self.model.scale) - self._obs_moments[self.frames]).ravel()
 
+    def row_frames(self) -> np.ndarray:
+        """(n_res,) the frame (position in ``frames``) of each residual row."""
+        if self.moments:
+            return np.repeat(np.arange(len(self.frames)), len(MOMENTS))
+        return super().row_frames()
+
     def gap_per_frame(self, theta: np.ndarray, frames: np.ndarray | None = None) -> np.ndarray:
         """(F,) per-frame gap, full-resolution pixels: mismatched band pixels, or the norm of
         the moment differences."""
@@ -722,8 +728,8 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 8, free: np.ndarray
     """Trust-region least squares of the parameters ``free`` (default all) on ``prob.frames``.
 
     Returns:
-        theta and ``{cost, nfev, cov}`` (Gauss-Newton covariance of the free parameters in physical
-        units, residual variance from the fit; i.i.d. pixels, so far too narrow: relative only).
+        theta and ``{cost, nfev, cov}`` (covariance of the free parameters in physical units,
+        residuals clustered by frame: :func:`vidsim.gap.rigid_diagnose.frame_sandwich_cov`).
     """
     m = prob.model
     theta0 = np.asarray(theta0, float)
@@ -756,8 +762,8 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 8, free: np.ndarray
     theta = full(sol.x)
     J = sol.jac
     n, p = J.shape
-    s2 = float(2 * sol.cost / max(n - p, 1))
-    cov_x = np.linalg.pinv(J.T @ J, rcond=1e-10) * s2
+    groups = prob.row_frames()
+    cov_x = frame_sandwich_cov(J, np.asarray(sol.fun, float), groups if len(groups) == n else None)
     cov = np.full((m.n_params, m.n_params), np.nan)
     cov[np.ix_(idx, idx)] = cov_x * np.outer(xs, xs)
     return theta, {"cost": float(2 * sol.cost), "nfev": int(sol.nfev), "cov": cov}
@@ -1215,12 +1221,15 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
                         and res["params"][added]["white_fraction"] >= cfg.jitter_min_white)
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
-    def strength(res: dict, added: str, prev: dict | None) -> float:
-        """How much ``added`` closes of what the model before it left (held-out; training for jitter)."""
+    def strength(res: dict, added: str, prev: dict | None) -> float | None:
+        """How much ``added`` closes of what the model before it left (held-out; training for
+        jitter); None when that left no held-out excess above the naming margin."""
         if added == "time_jitter":
             return train_closure(res, prev)
         ho0 = before if prev is None else prev["heldout_after_px"]
-        return (ho0 - res["heldout_after_px"]) / max(ho0 - floor_mean, 1e-9)
+        if ho0 - floor_mean <= cfg.min_excess * floor_mean:
+            return None
+        return (ho0 - res["heldout_after_px"]) / (ho0 - floor_mean)
 
     def polish(effects: tuple[str, ...], res: dict, step: int) -> dict:
         """Continue a named effect's refit from where it stopped (see ``polish_nfev``)."""

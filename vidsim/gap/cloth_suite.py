@@ -415,8 +415,12 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
         key = diag.refit_key(lbl)
         r = diag.refits.get(key) if key is not None else None
         if r is None:
+            out.setdefault("closure", {})[lbl] = None  # never refitted: not measured, counted as not closing
             continue
-        out.setdefault("closure", {})[lbl] = float(r.get("closure_of_remaining", r["heldout_closure"]))
+        clos = r["closure_of_remaining"] if "closure_of_remaining" in r else r["heldout_closure"]
+        out.setdefault("closure", {})[lbl] = None if clos is None else float(clos)
+        if lbl == "time_jitter":
+            out.setdefault("closure_kind", {})[lbl] = "training"
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
         # effects named jointly were refitted together: their strengths come from that refit
         joint = next((diag.refits[k] for k in diag.named_refit_keys()

@@ -412,9 +412,11 @@ class RigidGapModel:
             return np.where(np.isfinite(d), d, np.inf).reshape(len(self.times), -1).max(1)
 
         def shrink(h: np.ndarray, d: np.ndarray) -> np.ndarray:
+            # a probe whose simulation diverged (d = inf) says nothing about the step: keep the
+            # probe's (target/inf = 0 had made a zero step and a 0/0 Jacobian column)
             with np.errstate(divide="ignore", invalid="ignore"):
-                f = np.where(d > target_px, target_px / d, 1.0)
-            return h * np.where(np.isfinite(f), f, 1.0)
+                f = np.where(np.isfinite(d) & (d > target_px), target_px / d, 1.0)
+            return h * np.where(np.isfinite(f) & (f > 0), f, 1.0)
 
         jit = self.slices.get("time_jitter")
         linear = np.ones(self.n_params, bool)

@@ -200,11 +200,17 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
         key = "+".join(named[: named.index(lbl) + 1]) if lbl in named else lbl
         r = diag.refits.get(key)
         if r is None:
+            # never refitted (not among the screen's best): its closure is not measured, and the
+            # headline counts it as not closing (it had silently left the denominator)
+            out.setdefault("closure", {})[lbl] = None
             continue
-        clos = r.get("closure_of_remaining")
-        if clos is None:
+        if "closure_of_remaining" in r:
+            clos = r["closure_of_remaining"]  # None: no excess above the floor left to close
+        else:
             clos = r["heldout_closure"] if lbl != "time_jitter" else r["train_closure"]
-        out.setdefault("closure", {})[lbl] = float(clos)
+        out.setdefault("closure", {})[lbl] = None if clos is None else float(clos)
+        if lbl == "time_jitter":
+            out.setdefault("closure_kind", {})[lbl] = "training"  # its held-out values are fitted per frame
         out.setdefault("heldout_after_px", {})[lbl] = float(r["heldout_after_px"])
         if lbl in truths:
             # effects named jointly were refitted together: their strengths come from that refit
@@ -214,6 +220,13 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
             p = r["params"][lbl]
             est = p["std_s"] if lbl == "time_jitter" else p["value"]
             tv = truths[lbl]
+            if lbl == "time_jitter" and "capture_times" in truth:
+                # the same statistic as the estimate: the spread over the training frames (the
+                # truth's over every frame, background frames included, had been compared)
+                ct = np.asarray(truth["capture_times"], float)
+                nominal = np.asarray(nominal_times, float) if nominal_times is not None else np.arange(len(ct)) / 30.0
+                idx = np.asarray(diag.frames, int)[np.asarray(diag.train, int)]
+                tv = float(np.std((ct - nominal)[idx]))
             if isinstance(tv, list):
                 rel = float(np.linalg.norm(np.subtract(est, tv)) / max(np.linalg.norm(tv), 1e-12))
             else:
