@@ -33,6 +33,10 @@ G_EARTH = 9.81
 
 PARAM_NAMES = ("x", "y", "z", "rx", "ry", "rz", "vx", "vy", "vz", "wx", "wy", "wz", "tilt", "roll")
 
+T0_TOL = 1e-9
+"""Seconds an output time may lie before ``t0`` (round-off in frame times); such a time gets the
+initial state. :func:`vidsim.rigid.fit.fit_throw` uses the same bound for the guess's ``t0``."""
+
 
 # ----------------------------------------------------------------------------- quaternions
 @njit(cache=True)
@@ -328,8 +332,9 @@ def simulate(p: np.ndarray, q_base: np.ndarray, inertia: np.ndarray, times: np.n
         p: (14,) parameters (module docstring).
         q_base: (4,) base orientation quaternion.
         inertia: (3, 3) inertia about the centre of mass in body axes, kg m^2.
-        times: (T,) output times, seconds, non-decreasing and >= ``t0``.
-        t0: time of the initial state, seconds.
+        times: (T,) output times, seconds, finite, non-decreasing and >= ``t0`` (up to ``T0_TOL``).
+        t0: time of the initial state, seconds (finite: a NaN one integrated nothing and
+            returned the initial state at every time, flagged ok).
         hmax: largest RK4 step, seconds.
         sensitivities: integrate the variational equations too.
         g: gravity magnitude, m/s^2.
@@ -342,10 +347,21 @@ def simulate(p: np.ndarray, q_base: np.ndarray, inertia: np.ndarray, times: np.n
     times = np.ascontiguousarray(times, dtype=float)
     if times.ndim != 1 or times.size == 0:
         raise RigidBodyError(f"times must be a non-empty 1-D array, got shape {times.shape}")
-    if np.any(np.diff(times) < 0) or times[0] < t0 - 1e-12:
-        raise RigidBodyError("times must be non-decreasing and not before t0")
-    if not (hmax > 0):
-        raise RigidBodyError(f"hmax must be positive, got {hmax}")
+    try:
+        t0 = float(t0)
+    except (TypeError, ValueError):
+        raise RigidBodyError(f"t0 must be a finite time (s), got {t0!r}") from None
+    if not np.isfinite(t0):
+        raise RigidBodyError(f"t0 must be a finite time (s), got {t0}")
+    if not np.all(np.isfinite(times)):
+        raise RigidBodyError(f"times must be finite, got {times[~np.isfinite(times)].tolist()} at index "
+                             f"{np.flatnonzero(~np.isfinite(times)).tolist()}")
+    if np.any(np.diff(times) < 0):
+        raise RigidBodyError("times must be non-decreasing")
+    if times[0] < t0 - T0_TOL:
+        raise RigidBodyError(f"times must not be before t0 = {t0!r} (more than {T0_TOL:g} s), the first is {times[0]!r}")
+    if not (hmax > 0 and np.isfinite(hmax)):
+        raise RigidBodyError(f"hmax must be positive and finite, got {hmax}")
     I = np.ascontiguousarray(inertia, dtype=float)
     q0, S0 = initial_state(p, q_base)
     gv = gravity_vector(p[12], p[13], g)

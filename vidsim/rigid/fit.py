@@ -19,6 +19,7 @@ What makes it robust where the seed was fragile:
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -31,6 +32,7 @@ from vidsim.rigid.body import BoxBody, RigidBodyError
 from vidsim.rigid.dynamics import (
     G_EARTH,
     N_PARAM,
+    T0_TOL,
     pose_tangent_jacobian,
     quat_exp,
     quat_mul,
@@ -387,23 +389,60 @@ def distinct_alternatives(best: Candidate, alts: list[Candidate], body: BoxBody,
 
 
 # ----------------------------------------------------------------------------- driver
+_GUESS_UNITS = {"position": "m", "velocity": "m/s", "omega_world": "rad/s"}
+
+
+def _guess_number(guess: dict, name: str, unit: str) -> float:
+    """``guess[name]`` as a finite float; a RigidBodyError naming the field and value otherwise."""
+    v = guess[name]
+    try:
+        if isinstance(v, (bool, np.bool_)):
+            raise TypeError
+        x = float(v)
+    except (TypeError, ValueError):
+        raise RigidBodyError(f"initial guess: '{name}' must be a number ({unit}), got {v!r}") from None
+    if not np.isfinite(x):
+        raise RigidBodyError(f"initial guess: '{name}' must be a finite number ({unit}), got {v!r}")
+    return x
+
+
+def _guess_vector(guess: dict, name: str, n: int, what: str) -> np.ndarray:
+    """``guess[name]`` as ``n`` finite floats; a RigidBodyError naming the field and value otherwise."""
+    v = guess[name]
+    try:
+        if isinstance(v, (str, bytes, bool)):
+            raise TypeError
+        a = np.asarray(v, float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (n,) or not np.all(np.isfinite(a)):
+        raise RigidBodyError(f"initial guess: '{name}' must be {n} finite numbers{what}, got {v!r}")
+    return a
+
+
 def _parse_guess(guess: dict) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """(parameters (14,), unit quaternion (4,), t0 or None) of an initial-guess mapping.
+
+    Every field must be finite numbers (a NaN ``t0`` simulated a motionless object and a word raised
+    a bare ValueError); a missing ``tilt``/``roll`` is 0, a missing or null ``t0`` the first frame.
+    """
+    if not isinstance(guess, Mapping):
+        raise RigidBodyError(f"initial guess: expected a mapping (position, quaternion, velocity, omega_world, "
+                             f"tilt, roll, t0), got {type(guess).__name__}")
     missing = [k for k in ("position", "quaternion", "velocity", "omega_world") if k not in guess]
     if missing:
         raise RigidBodyError(f"initial guess: missing field(s) {missing}")
-    q = np.asarray(guess["quaternion"], float)
-    if q.shape != (4,) or not np.all(np.isfinite(q)) or np.linalg.norm(q) < 1e-9:
-        raise RigidBodyError(f"initial guess: 'quaternion' must be 4 finite numbers (w,x,y,z), got {guess['quaternion']}")
+    q = _guess_vector(guess, "quaternion", 4, " (w,x,y,z)")
+    if np.linalg.norm(q) < 1e-9:
+        raise RigidBodyError(f"initial guess: 'quaternion' must be 4 finite numbers (w,x,y,z), not all zero, "
+                             f"got {guess['quaternion']!r}")
     p = np.zeros(N_PARAM)
     for name, sl in (("position", slice(0, 3)), ("velocity", slice(6, 9)), ("omega_world", slice(9, 12))):
-        v = np.asarray(guess[name], float)
-        if v.shape != (3,) or not np.all(np.isfinite(v)):
-            raise RigidBodyError(f"initial guess: '{name}' must be 3 finite numbers, got {guess[name]}")
-        p[sl] = v
-    p[12] = float(guess.get("tilt", 0.0))
-    p[13] = float(guess.get("roll", 0.0))
-    t0 = guess.get("t0")
-    return p, q / np.linalg.norm(q), (None if t0 is None else float(t0))
+        p[sl] = _guess_vector(guess, name, 3, f" ({_GUESS_UNITS[name]})")
+    p[12] = _guess_number(guess, "tilt", "rad") if "tilt" in guess else 0.0
+    p[13] = _guess_number(guess, "roll", "rad") if "roll" in guess else 0.0
+    t0 = None if guess.get("t0") is None else _guess_number(guess, "t0", "s")
+    return p, q / np.linalg.norm(q), t0
 
 
 def visible_frames(masks: np.ndarray, min_pixels: int = 20) -> np.ndarray:
@@ -437,7 +476,9 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         body: the known body (from ``meta.yaml``).
         guess: initial guess ``{position, quaternion (w,x,y,z), velocity, omega_world, tilt,
             roll, t0}`` at time ``t0`` (default: the first fitted frame) -- the seed's user-given
-            approximate initial state.
+            approximate initial state. Every field must be finite numbers (a RigidBodyError names
+            the field and value otherwise); ``t0`` must not lie after the first fitted frame by more
+            than ``T0_TOL`` (within it, ``t0`` becomes that frame's time).
         cfg: :class:`FitConfig` or a mapping of its fields.
         on_step: called after every optimised stage of a start as ``on_step(done, total, note)``, in
             work units (scale^2 x frames x iterations, integers); ``total`` is an upper bound (the
@@ -467,8 +508,10 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
     fm = masks[frames]
     p_guess, q_guess, t0 = _parse_guess(guess)
     t0 = float(ft[0]) if t0 is None else t0
-    if t0 > ft[0] + 1e-9:
-        raise RigidBodyError(f"initial guess: 't0' = {t0} is after the first visible frame at {ft[0]}")
+    if t0 > ft[0] + T0_TOL:
+        raise RigidBodyError(f"initial guess: 't0' = {t0!r} s is after the first visible frame at {ft[0]!r} s "
+                             f"(frame {frames[0]}): expected a time at or before it")
+    t0 = min(t0, float(ft[0]))  # within T0_TOL after it: the state at that frame
 
     objs: dict[tuple, SilhouetteObjective] = {}
     log = _stage_log(checkpoint, fm, ft, t0, cam, body, p_guess, q_guess, cfg)
