@@ -148,3 +148,21 @@ def test_checkpoint_of_other_inputs_is_moved_aside_not_replayed(tmp_path):
                     checkpoint=ck)
     assert res.replayed_stages == 0
     assert (tmp_path / "stages.stale-2.jsonl").is_file()
+
+
+def test_stage_driver_fits_with_the_footages_gravity_magnitude():
+    """estimate_throw ignored meta['gravity_magnitude'] and fitted every throw with 9.81 m/s^2."""
+    from vidsim.rigid.stage import estimate_throw
+
+    th, _ = _throw(14)
+    guess = perturbed_guess(th.truth, np.random.default_rng(14), orient_deg=10.0)
+    cfg = {"screen": [Stage(0.25, 10, 2, 1.0)], "screen_keep": [1], "refine": [], "final": [], "multistart": "none"}
+    meta = {**th.meta, "gravity_magnitude": 1.62, "initial_guess": guess}
+    assert estimate_throw(None, th.times, th.camera, meta, fit_cfg=cfg, masks=th.masks).fit.gravity == 1.62
+    assert estimate_throw(None, th.times, th.camera, meta, fit_cfg=FitConfig(**cfg), masks=th.masks).fit.gravity == 1.62
+    no_g = {k: v for k, v in meta.items() if k != "gravity_magnitude"}  # absent: the settings' value
+    assert estimate_throw(None, th.times, th.camera, no_g, fit_cfg={**cfg, "gravity": 3.7}, masks=th.masks).fit.gravity == 3.7
+    with pytest.raises(RigidBodyError, match=r"'gravity' = 3\.7 m/s\^2 contradicts meta 'gravity_magnitude' = 1\.62"):
+        estimate_throw(None, th.times, th.camera, meta, fit_cfg={**cfg, "gravity": 3.7}, masks=th.masks)
+    with pytest.raises(RigidBodyError, match=r"meta: 'gravity_magnitude' must be a number \(m/s\^2\), got 'moon'"):
+        estimate_throw(None, th.times, th.camera, {**meta, "gravity_magnitude": "moon"}, fit_cfg=cfg, masks=th.masks)
