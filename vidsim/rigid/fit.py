@@ -304,9 +304,12 @@ def run_stage(obj: SilhouetteObjective, p: np.ndarray, qb: np.ndarray, maxiter: 
         E, G, _ = obj(p0 + x * PARAM_SCALE, qb)
         return E, G * PARAM_SCALE
 
+    def record(intermediate_result) -> None:  # scipy >= 1.11 passes the iterate's value: no re-evaluation
+        hist.append(float(intermediate_result.fun))
+
     res = minimize(fun, np.zeros(N_PARAM), jac=True, method="L-BFGS-B",
                    options={"maxiter": int(maxiter), "maxcor": 20, "ftol": 1e-10, "gtol": 1e-8},
-                   callback=lambda xk: hist.append(float(fun(xk)[0])))
+                   callback=record)
     p1, q1 = _fold(p0 + res.x * PARAM_SCALE, qb)
     E = float(res.fun)
     if not hist or hist[-1] != E:

@@ -166,3 +166,28 @@ def test_stage_driver_fits_with_the_footages_gravity_magnitude():
         estimate_throw(None, th.times, th.camera, meta, fit_cfg={**cfg, "gravity": 3.7}, masks=th.masks)
     with pytest.raises(RigidBodyError, match=r"meta: 'gravity_magnitude' must be a number \(m/s\^2\), got 'moon'"):
         estimate_throw(None, th.times, th.camera, {**meta, "gravity_magnitude": "moon"}, fit_cfg=cfg, masks=th.masks)
+
+
+def test_stage_history_costs_no_extra_objective_evaluations(monkeypatch):
+    """The per-iteration history re-evaluated objective and gradient in scipy's callback (76 calls
+    for scipy's 58); it now records scipy's value of the iterate, the same number."""
+    from vidsim.rigid import fit as F
+
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    fr = F.visible_frames(th.masks)
+    p, q, _ = F._parse_guess(guess)
+    obj = F.SilhouetteObjective(body, th.camera, th.times[fr][:10], th.masks[fr][:10], float(th.times[fr][0]), 0.25, 1.0)
+    seen = {}
+    orig = F.minimize
+
+    def spy(*a, **k):
+        r = orig(*a, **k)
+        seen["nfev"], seen["nit"] = r.nfev, r.nit
+        return r
+
+    monkeypatch.setattr(F, "minimize", spy)
+    p1, q1, E, hist = F.run_stage(obj, p, q, 6)
+    assert seen["nit"] >= 2 and obj.n_evals == seen["nfev"]
+    assert len(hist) in (seen["nit"], seen["nit"] + 1) and hist[-1] == E
+    assert hist[seen["nit"] - 1] == pytest.approx(obj(p1, q1, grad=False)[0], rel=1e-9)  # the last iterate's value
