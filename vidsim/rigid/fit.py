@@ -9,8 +9,9 @@ The descent is L-BFGS (a quasi-Newton gradient method) on scaled parameters.
 What makes it robust where the seed was fragile:
 
 * multi-start over orientation: the guess composed with the 60 rotations of the icosahedral group
-  (reduced modulo the body's own symmetries), so some start lies within ~38 degrees of the truth
-  whatever the initial orientation error;
+  (reduced modulo the body's own symmetries), so some start lies within 44.5 degrees of the truth
+  whatever the initial orientation error (the group's covering radius, 44.48 degrees found by
+  maximising the distance to the nearest start; the worst of 4000 random orientations was 43.6);
 * coarse-to-fine in time (first frames only, then all) and in space (image pyramid);
 * a distance-transform term that attracts disjoint silhouettes (zero at the finest level);
 * an explicit report of distinct solutions whose silhouettes explain the footage equally well.
