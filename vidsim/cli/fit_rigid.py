@@ -161,7 +161,8 @@ def run(cfg: DictConfig) -> None:
     # the main output last: a kill while the figures are written leaves no new fit.yaml beside old figures
     write_yaml(out / "fit.yaml", d)
     ckpt.unlink(missing_ok=True)
-    alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else ""
+    alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else \
+        ("; one candidate refined: no two-solution check" if res.ambiguous is None else "")
     replay = f" ({res.replayed_stages} stages replayed from the checkpoint)" if res.replayed_stages else ""
     print(f"fit_rigid: mean IoU {res.mean_iou:.4f} over {len(res.frames)} frames, {res.n_starts} starts, "
           f"{res.seconds:.1f} s{replay}{alt} -> {out / 'fit.yaml'}")

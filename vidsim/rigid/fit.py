@@ -167,7 +167,9 @@ class FitResult:
         history: objective per iteration of the best start.
         alternatives: the other refined candidates, best first.
         ambiguous: True when a distinct candidate explains the silhouettes as well (within
-            ``tie_iou``): the footage does not decide between them (seed Figure 2, row c).
+            ``tie_iou``): the footage does not decide between them (seed Figure 2, row c). None
+            when fewer than two candidates were refined (``multistart="none"`` or a last
+            ``screen_keep`` of 1): nothing was compared, so the fit cannot say.
         seconds: wall time of the whole estimation.
         n_starts: number of starts screened.
         distinct: indices into ``alternatives`` of the distinct, equally good solutions.
@@ -185,7 +187,7 @@ class FitResult:
     mean_iou: float
     history: list[float]
     alternatives: list[Candidate]
-    ambiguous: bool
+    ambiguous: bool | None
     seconds: float
     n_starts: int
     distinct: list[int] = field(default_factory=list)
@@ -205,7 +207,7 @@ class FitResult:
             "roll": float(self.params[13]),
             "mean_iou": float(self.mean_iou),
             "iou": self.iou.tolist(),
-            "ambiguous": bool(self.ambiguous),
+            "ambiguous": None if self.ambiguous is None else bool(self.ambiguous),
             "distinct_alternatives": list(self.distinct),
             "alternatives": [
                 {"quaternion": c.q_base.tolist(), "mean_iou": c.mean_iou, "cost": c.cost,
@@ -628,6 +630,7 @@ def _fit_starts(cfg: FitConfig, pool: list, stage, step, body: BoxBody, cam: Pin
     alts = cands[1:]
     tr_best = simulate(best.params, best.q_base, body.inertia, ft, t0, cfg.hmax, sensitivities=False, g=cfg.gravity)
     distinct = distinct_alternatives(best, alts, body, ft, t0, cfg.tie_iou, cfg.distinct_deg, cfg.hmax, cfg.gravity)
+    ambiguous = bool(distinct) if alts else None  # one candidate: no two-solution check was made
     return FitResult(best.params, best.q_base, t0, ft, frames, tr_best.states, best.iou, best.mean_iou,
-                     best.history, alts, bool(distinct), time.perf_counter() - t_start, n_starts, distinct,
+                     best.history, alts, ambiguous, time.perf_counter() - t_start, n_starts, distinct,
                      float(cfg.gravity), float(cfg.hmax))

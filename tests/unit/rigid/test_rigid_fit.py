@@ -191,3 +191,12 @@ def test_stage_history_costs_no_extra_objective_evaluations(monkeypatch):
     assert seen["nit"] >= 2 and obj.n_evals == seen["nfev"]
     assert len(hist) in (seen["nit"], seen["nit"] + 1) and hist[-1] == E
     assert hist[seen["nit"] - 1] == pytest.approx(obj(p1, q1, grad=False)[0], rel=1e-9)  # the last iterate's value
+
+
+def test_ambiguity_is_unchecked_with_one_candidate_and_checked_with_two():
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    one = fit_throw(th.masks, th.times, th.camera, body, guess, {**TINY, "multistart": "none"})
+    assert one.alternatives == [] and one.ambiguous is None and one.summary()["ambiguous"] is None
+    two = fit_throw(th.masks, th.times, th.camera, body, guess, {**TINY, "screen": [Stage(0.25, 10, 2, 1.0)]})
+    assert len(two.alternatives) == 1 and two.ambiguous in (True, False)
