@@ -1,7 +1,8 @@
 """Newton-Euler free flight with quaternions and its variational equations (seed eq. 1-2).
 
 State ``q = [X (3), Q (4), V (3), w (3)]`` (13,): centre-of-mass position X (m) and velocity V
-(m/s) in the world frame (the camera frame, as in the seed: x right, y down, z forward), the
+(m/s) in the world frame (the calibration's; the camera frame when its R = I, t = 0, as in the seed
+and in the rigid footage's calibration: x right, y down, z forward), the
 orientation quaternion ``Q = (w, x, y, z)`` mapping body to world, and the angular velocity ``w``
 in *body* axes (rad/s). The ODE (seed eq. 1) is::
 
@@ -11,7 +12,7 @@ Parameters ``p`` (14,) = ``[X0 (3), d (3), V0 (3), W0 (3), tilt, roll]``: initia
 a rotation vector ``d`` (rad, body axes) applied to a base orientation ``Q0 = Qb * exp(d)``, initial
 velocity, initial angular velocity ``W0`` in *world* axes (rad/s) and the two gravity angles (rad)
 with ``g = |g| (-sin roll, cos roll cos tilt, cos roll sin tilt)`` (tilt = roll = 0: gravity along
-+y, image down).
+world +y, image down when the world frame is the camera's).
 
 The sensitivities ``S = dq/dp`` (13, 14) obey ``S' = (dF/dq) S + dF/dp`` (variational equations),
 integrated together with the state by the same fixed-step RK4, so they are the exact derivatives of
@@ -143,7 +144,8 @@ def rotation_angle_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
 
 # ----------------------------------------------------------------------------- gravity
 def gravity_vector(tilt: float, roll: float, g: float = G_EARTH) -> np.ndarray:
-    """Gravity (3,) m/s^2 in camera axes from the two angles (radians)."""
+    """Gravity (3,) m/s^2 in world axes (the camera's when the calibration has R = I) from the two
+    angles (radians)."""
     return g * np.array([-np.sin(roll), np.cos(roll) * np.cos(tilt), np.cos(roll) * np.sin(tilt)])
 
 

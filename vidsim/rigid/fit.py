@@ -158,8 +158,10 @@ class FitResult:
     """Estimate of a throw.
 
     Attributes:
-        params: (14,) best parameters ``[X0, 0, 0, 0, V0, W0 (world), tilt, roll]``.
-        q0: (4,) best initial orientation quaternion (w, x, y, z), body -> camera-rig frame.
+        params: (14,) best parameters ``[X0, 0, 0, 0, V0, W0 (world), tilt, roll]``, all in the
+            camera's world frame (see :func:`fit_throw`).
+        q0: (4,) best initial orientation quaternion (w, x, y, z), body -> world frame (the
+            calibration's world frame; the camera's axes when the calibration has R = I, t = 0).
         t0: time of the initial state, seconds.
         times: (T,) fitted frame times, seconds; frames: (T,) their indices in the footage.
         states: (T, 13) simulated states at those times.
@@ -478,7 +480,10 @@ def fit_throw(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: Bo
         masks: (N, H, W) bool silhouettes of the whole clip (background-only frames allowed;
             the longest run of frames showing the object is fitted).
         times: (N,) frame times, seconds.
-        cam: calibrated camera (defines the world frame; gravity is estimated in it).
+        cam: calibrated camera. Its world frame (``R``, ``t``: world -> camera) is the frame of
+            the guess, of the estimate and of the gravity angles (tilt = roll = 0: gravity along
+            world +y). Only when ``R = I, t = 0`` (the rigid footage's and ``calibrate_real``'s) is that the
+            camera frame (x right, y down, z forward); ``fit_rigid`` warns otherwise.
         body: the known body (from ``meta.yaml``).
         guess: initial guess ``{position, quaternion (w,x,y,z), velocity, omega_world, tilt,
             roll, t0}`` at time ``t0`` (default: the first fitted frame) -- the seed's user-given

@@ -79,12 +79,12 @@ def _candidate_to_dict(c: Candidate) -> dict:
     }
 
 
-def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
+def fit_to_dict(res: FitResult, body: BoxBody, cam: PinholeCamera | None = None) -> dict:
     """Plain (YAML-safe) dictionary of a fit: named parameters first, everything to rebuild it.
 
     Keys: ``format``; the named estimate at time ``t0`` (``position`` m, ``quaternion`` (w,x,y,z)
     body -> world, ``velocity`` m/s, ``omega_world`` rad/s, ``tilt``/``roll`` rad,
-    ``gravity_direction`` unit (3,) in the camera-defined world frame, ``gravity_magnitude`` m/s^2
+    ``gravity_direction`` unit (3,) in the calibration's world frame, ``gravity_magnitude`` m/s^2
     (known, not fitted), ``hmax`` the RK4 step bound, s); ``mean_iou``, ``iou`` (T,),
     ``ambiguous`` (true/false, or null with ``ambiguous_note`` when fewer than two candidates were
     refined and nothing was compared), ``distinct_alternatives``; ``params`` (14,) raw vector
@@ -92,10 +92,15 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
     ``times`` (T,) s, ``frames`` (T,) footage indices, ``states`` (T, 13); ``history``;
     ``alternatives`` (list of candidates, best first), ``seconds``, ``n_starts``; ``object`` (the
     body's ``meta.yaml`` description, so a reader can rebuild it with ``BoxBody.from_meta``).
+    With ``cam``: ``world_frame`` (what the frame of the estimate is, and the calibration's ``R``,
+    ``t``: world -> camera) and ``gravity_direction_camera`` (``R`` times ``gravity_direction``):
+    every vector above is in the calibration's world frame, which is the camera frame only when
+    ``R = I, t = 0``.
 
     Args:
         res: the estimate.
         body: the body it was fitted with.
+        cam: the camera it was fitted with (optional: labels the frame).
 
     Returns:
         dictionary; :func:`fit_from_dict` inverts it exactly (floats survive YAML by repr).
@@ -128,10 +133,23 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
         "alternatives": [_candidate_to_dict(c) for c in res.alternatives],
         "object": body.to_meta(),
     }
+    if cam is not None:
+        d["world_frame"] = {
+            "note": ("position, quaternion, velocity, omega_world, gravity_direction and states are in the world "
+                     "frame of the calibration (R, t: world -> camera); " + (
+                         "here R = I and t = 0, so it is the camera frame (x right, y down, z forward)"
+                         if is_camera_frame(cam) else "here R != I or t != 0: it is NOT the camera frame")),
+            "R": np.asarray(cam.R, float).tolist(), "t": np.asarray(cam.t, float).tolist()}
+        d["gravity_direction_camera"] = (np.asarray(cam.R, float) @ g).tolist()
     if res.ambiguous is None:
         d["ambiguous_note"] = (f"not checked: {1 + len(res.alternatives)} candidate(s) refined, the two-solution "
                                "report compares at least two (rigid.fit.multistart=none or a last screen_keep of 1)")
     return d
+
+
+def is_camera_frame(cam: PinholeCamera, atol: float = 1e-9) -> bool:
+    """Whether the calibration's world frame is the camera frame (``R = I``, ``t = 0``)."""
+    return bool(np.allclose(cam.R, np.eye(3), rtol=0, atol=atol) and np.allclose(cam.t, 0.0, rtol=0, atol=atol))
 
 
 def _arr(d: dict, key: str, shape: tuple, where: str) -> np.ndarray:

@@ -108,3 +108,26 @@ def test_rigid_summary_reads_an_unchecked_ambiguity(tmp_path):
     rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()
     col = rows[0].split(",").index("ambiguous")
     assert [r.split(",")[col] for r in rows[1:]] == ["unchecked", "False", "True"]
+
+
+def test_fit_yaml_names_the_calibrations_world_frame(rng):
+    """The estimate is in the calibration's world frame, called 'camera axes' although that holds
+    only while R = I, t = 0: fit.yaml labels the frame and gives gravity in camera axes."""
+    from vidsim.rigid.dynamics import rotvec_to_rot
+    from vidsim.rigid.outputs import is_camera_frame
+    from vidsim.video.camera import PinholeCamera
+
+    res, body = _fit(rng)
+    K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
+    cam = PinholeCamera(K)
+    d = fit_to_dict(res, body, cam)
+    assert is_camera_frame(cam) and "so it is the camera frame" in d["world_frame"]["note"]
+    assert d["gravity_direction_camera"] == d["gravity_direction"]
+    R = rotvec_to_rot(np.array([0.3, 0.0, 0.1]))
+    tilted = PinholeCamera(K, R, [0.0, 0.0, 0.5])
+    d = fit_to_dict(res, body, tilted)
+    assert not is_camera_frame(tilted) and "NOT the camera frame" in d["world_frame"]["note"]
+    assert np.allclose(d["gravity_direction_camera"], R @ np.asarray(d["gravity_direction"]))
+    assert np.array_equal(d["world_frame"]["R"], R.tolist())
+    assert fit_from_dict(yaml.safe_load(yaml.safe_dump(d))).mean_iou == res.mean_iou  # readers ignore the labels
+    assert "world_frame" not in fit_to_dict(res, body)
