@@ -129,6 +129,12 @@ def test_bad_inputs_are_named(throw):
     cases = [
         ("noobject", lambda m: m.pop("object"), r"meta\.yaml: missing field 'object'"),
         ("badmass", lambda m: m["object"].update(mass=-1.0), r"meta\.yaml: object: body: 'mass' must be positive.*-1\.0"),
+        # a word where a number belongs was numpy's traceback; a NaN t0 a motionless "fit" with no error
+        ("wordtilt", lambda m: m["initial_guess"].update(tilt="abc"),
+         r"meta\.yaml.*initial guess: 'tilt' must be a number \(rad\), got 'abc'"),
+        ("nant0", lambda m: m["initial_guess"].update(t0=float("nan")),
+         r"meta\.yaml.*initial guess: 't0' must be a finite number \(s\), got nan"),
+        # the last case is also run through the command line below
         ("nogravity", lambda m: m.update(gravity_magnitude=0.0), r"meta\.yaml: field 'gravity_magnitude' = 0\.0"),
     ]
     for name, edit, pattern in cases:
@@ -140,3 +146,6 @@ def test_bad_inputs_are_named(throw):
     # through the command line: one line on stderr, exit code 2, no traceback
     r = _cli("fit_rigid", res, *args)
     _one_line_error(r, "meta.yaml", "gravity_magnitude", "0.0")
+    r = _cli("fit_rigid", res, f"paths.footage={res / 'footage' / 'rigid_wordtilt'}", masks_arg,
+             f"paths.out={res / 'rigid' / 'wordtilt'}", *SCENE)
+    _one_line_error(r, "meta.yaml", "'tilt' must be a number (rad)", "'abc'")

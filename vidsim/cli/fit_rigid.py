@@ -6,7 +6,9 @@ folder (meta.yaml: ``object``, ``gravity_magnitude``, ``initial_guess``; calibra
 ``paths.calibration``) and the silhouettes; never the truth. Writes
 
 * ``fit.yaml``: named parameters at ``t0``, IoU, alternatives and the two-solution report
-  (:func:`vidsim.rigid.outputs.fit_to_dict`; read it back with ``fit_from_dict``);
+  (:func:`vidsim.rigid.outputs.fit_to_dict`; read it back with ``fit_from_dict``), the frame they
+  are in (``world_frame``: the calibration's world frame, the camera's when R = I, t = 0; a
+  calibration with R != I or t != 0 is warned about on stderr and in ``frame_warning``);
 * ``overlay.mp4`` (or ``.gif``): model silhouette (green) over the footage with the observed one (magenta);
 * ``errors.png``: IoU and mismatch per frame, objective per iteration, the 3D path;
 * ``rigid.rrd``: footage, observed and simulated silhouettes, per-frame errors, iterations, 3D path.
@@ -37,7 +39,7 @@ from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 from vidsim.rigid.body import RigidBodyError
 from vidsim.rigid.fit import FAIL_COST, fit_throw
-from vidsim.rigid.outputs import corner_paths, fit_to_dict, overlay, simulated_masks
+from vidsim.rigid.outputs import corner_paths, fit_to_dict, is_camera_frame, overlay, simulated_masks
 
 
 def _plot(res, mism: np.ndarray, path: Path) -> None:
@@ -57,8 +59,8 @@ def _plot(res, mism: np.ndarray, path: Path) -> None:
     ax[1].set_title(f"{res.n_starts} starts, {res.seconds:.1f} s")
     X = res.states[:, 0:3]
     ax[2].plot(X[:, 0], -X[:, 1], "o-", ms=2)
-    ax[2].set_xlabel("x (camera right), m")
-    ax[2].set_ylabel("-y (camera up), m")
+    ax[2].set_xlabel("world x (camera right when R = I), m")
+    ax[2].set_ylabel("world -y (camera up when R = I), m")
     ax[2].set_title("fitted centre-of-mass path")
     ax[2].axis("equal")
     fig.tight_layout()
@@ -102,6 +104,12 @@ def run(cfg: DictConfig) -> None:
         raise RigidStageError(f"{meta_path}: missing field 'initial_guess' (position, quaternion, velocity, "
                               "omega_world, tilt, roll, t0: the user's rough initial state)")
     cam = read_calibration(cfg.paths.calibration)["camera"] if cfg.paths.calibration else fo.camera
+    frame_warning = None
+    if not is_camera_frame(cam):  # the guess is documented in camera axes: say how it is read, before the fit
+        frame_warning = (f"the calibration ({cfg.paths.calibration or fo.path / 'calibration.yaml'}) has R != I or "
+                         "t != 0: the initial guess is read, and the estimate written, in its world frame, not in "
+                         "camera axes (fit.yaml's gravity_direction_camera is gravity in camera axes)")
+        print(f"fit_rigid: warning: {frame_warning}", file=sys.stderr, flush=True)
     mpath = Path(cfg.rigid.paths.masks or out / "masks.npz")
     masks, times = read_masks(mpath)
     if masks.shape != fo.frames.shape[:3]:
@@ -132,7 +140,7 @@ def run(cfg: DictConfig) -> None:
     sim = simulated_masks(res, body, cam)
     obs = masks[res.frames]
     mism = (sim ^ obs).reshape(len(sim), -1).sum(1)
-    d = fit_to_dict(res, body)
+    d = fit_to_dict(res, body, cam)
     d["mismatch_px"] = mism.tolist()
     d["inputs"] = {"footage": str(fo.path), "masks": str(mpath), "fit_settings": asdict(fc)}
     ov = with_inset(overlay(fo.frames[res.frames], sim, obs), obs | sim)
@@ -154,6 +162,8 @@ def run(cfg: DictConfig) -> None:
             lg.scalar("metric/mismatch_px", float(mism[k]))
             lg.mesh3d("world/fit/body", corners[k], F, color=(0.1, 0.8, 0.2))
         lg.series("optim/objective", np.asarray(res.history))
+    if frame_warning:
+        d["frame_warning"] = frame_warning
     failed = res.mean_iou < MIN_EXPLAINED_IOU
     if failed:
         d["warning"] = (f"the fit explains little of the silhouettes (mean IoU {res.mean_iou:.3f} < {MIN_EXPLAINED_IOU}): "
@@ -161,7 +171,8 @@ def run(cfg: DictConfig) -> None:
     # the main output last: a kill while the figures are written leaves no new fit.yaml beside old figures
     write_yaml(out / "fit.yaml", d)
     ckpt.unlink(missing_ok=True)
-    alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else ""
+    alt = f"; {len(res.distinct)} distinct equally good solution(s)" if res.ambiguous else \
+        ("; one candidate refined: no two-solution check" if res.ambiguous is None else "")
     replay = f" ({res.replayed_stages} stages replayed from the checkpoint)" if res.replayed_stages else ""
     print(f"fit_rigid: mean IoU {res.mean_iou:.4f} over {len(res.frames)} frames, {res.n_starts} starts, "
           f"{res.seconds:.1f} s{replay}{alt} -> {out / 'fit.yaml'}")

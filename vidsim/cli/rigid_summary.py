@@ -2,7 +2,8 @@
 
 ``python -m vidsim.cli.rigid_summary "rigid.paths.scores='results/rigid/a/score.yaml results/rigid/b/score.yaml'"
 paths.out=results/rigid`` writes ``summary.csv`` (one row per case: errors, pass/fail, segmentation
-IoU, fit time, effects switched on) and ``summary.png`` (each error over its threshold, per case).
+IoU, fit time, ``ambiguous`` True/False or ``unchecked`` when the fit refined one candidate, effects
+switched on) and ``summary.png`` (each error over its threshold, per case).
 """
 
 from __future__ import annotations
@@ -47,7 +48,8 @@ def run(cfg: DictConfig) -> None:
         eff = " ".join(f"{k}={v}" for k, v in d.get("effects_on", {}).items()).replace(",", ";")
         lines.append(",".join([case, str(d.get("seed")), str(d["success"]), *(f"{e[k]:.6g}" for k in COLUMNS),
                                f"{e['mean_iou_footage']:.6g}", f"{d['segmentation']['mean_iou']:.6g}",
-                               f"{d['fit']['seconds']:.1f}", str(d['fit']['n_starts']), str(d['fit']['ambiguous']),
+                               f"{d['fit']['seconds']:.1f}", str(d['fit']['n_starts']),
+                               "unchecked" if d['fit']['ambiguous'] is None else str(d['fit']['ambiguous']),
                                eff]))
     n_ok = sum(bool(d["success"]) for _, d in rows)
 

@@ -69,8 +69,12 @@ def track_blob(masks: np.ndarray, min_area: int = 15, max_area: int = 600, min_f
 def split_flights(times: np.ndarray, centres: np.ndarray, min_len: int = 6) -> list[np.ndarray]:
     """Index arrays of free flights: runs of detections ended by a gap or a bounce.
 
-    A bounce is where the image velocity along the mean gravity direction turns from falling to
-    rising between consecutive detections (an apex turns the other way, smoothly).
+    A gap is a frame without a detection (non-finite centre). A bounce is where the image row
+    velocity ``dv/dt`` (``centres[:, 1]``, image v grows downwards: the test assumes gravity points
+    down the image, not along an estimated gravity direction) turns from positive (moving down) to
+    negative (moving up) between consecutive detections and drops by more than a fixed 200 px/s
+    (not scaled with the image size or frame rate); an apex turns the other way and is not split.
+    Runs shorter than 3 detections and flights shorter than ``min_len`` are dropped.
     """
     t = np.asarray(times, float)
     c = np.asarray(centres, float)

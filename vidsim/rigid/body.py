@@ -18,6 +18,17 @@ class RigidBodyError(ValueError):
     """A rigid-body description or parameter is malformed; the message names the field."""
 
 
+INERTIA_TRIANGLE_RTOL = 1e-3
+"""Relative slack of the check ``I3 <= I1 + I2`` on the principal moments (room for rounded values
+of a thin plate, which lies on the bound)."""
+
+ROTATION_ATOL = 1e-6
+"""How far a symmetry may be from orthonormal with determinant +1 (elementwise)."""
+
+SYMMETRY_RTOL = 1e-3
+"""A symmetry must map every box corner to within this fraction of the body's radius of a corner."""
+
+
 # the 12 triangles of a unit cube with vertices ordered as in ``_BOX_SIGNS``
 _BOX_SIGNS = np.array(
     [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
@@ -39,8 +50,14 @@ class BoxBody:
         half_sizes: (B, 3) box half extents, metres.
         mass: total mass, kg.
         inertia: (3, 3) inertia tensor about the stated centre of mass in body axes, kg m^2.
-        symmetries: (S, 3, 3) proper rotations (body frame) mapping the shape onto itself,
-            the identity first. Orientations are only defined modulo these.
+        symmetries: (S, 3, 3) proper rotations (body frame, about the centre of mass) mapping the
+            shape onto itself, the identity first. Orientations are only defined modulo these.
+            Checked: each must be orthonormal with determinant +1 and map the set of box corners
+            onto itself (within ``SYMMETRY_RTOL`` of the radius); the identity is added when
+            missing (without it every orientation would differ from itself).
+
+    Every field must be finite; ``inertia`` symmetric positive definite with principal moments
+    obeying ``I3 <= I1 + I2`` (as every real mass distribution does, within ``INERTIA_TRIANGLE_RTOL``).
     """
 
     centers: np.ndarray
@@ -64,6 +81,10 @@ class BoxBody:
             self.mass = float(self.mass)
         except (TypeError, ValueError):
             raise RigidBodyError(f"body: 'mass' must be a number (kg), got {self.mass!r}") from None
+        for name in ("centers", "half_sizes", "inertia", "symmetries"):
+            arr = getattr(self, name)
+            if not np.all(np.isfinite(arr)):
+                raise RigidBodyError(f"body: '{name}' must be finite numbers, got {arr.tolist()}")
         if self.centers.shape != self.half_sizes.shape:
             raise RigidBodyError(
                 f"body: 'centers' {self.centers.shape} and 'half_sizes' {self.half_sizes.shape} must match")
@@ -73,7 +94,36 @@ class BoxBody:
             raise RigidBodyError(f"body: 'mass' must be positive and finite, got {self.mass}")
         ev = np.linalg.eigvalsh(0.5 * (self.inertia + self.inertia.T))
         if not np.allclose(self.inertia, self.inertia.T, atol=1e-12) or ev.min() <= 0:
-            raise RigidBodyError(f"body: 'inertia' must be symmetric positive definite, eigenvalues {ev.tolist()}")
+            raise RigidBodyError(f"body: 'inertia' must be symmetric positive definite, got {self.inertia.tolist()} "
+                                 f"(eigenvalues {ev.tolist()})")
+        # principal moments of any mass distribution obey I_a <= I_b + I_c (equality: a flat plate)
+        if ev[2] > (ev[0] + ev[1]) * (1.0 + INERTIA_TRIANGLE_RTOL):
+            raise RigidBodyError(
+                f"body: 'inertia' is not the inertia of any rigid body: its principal moments {ev.tolist()} violate "
+                f"I3 <= I1 + I2 ({ev[2]:.6g} > {ev[0] + ev[1]:.6g}; relative tolerance {INERTIA_TRIANGLE_RTOL:g}). "
+                "Expected the full 3x3 tensor about the centre of mass in body axes, kg m^2")
+        self.symmetries = self._checked_symmetries(self.symmetries)
+
+    def _checked_symmetries(self, sym: np.ndarray) -> np.ndarray:
+        """``sym`` validated: each a proper rotation mapping the box corners onto themselves; the
+        identity first (added when missing, moved to the front when elsewhere)."""
+        V = self.box_vertices().reshape(-1, 3)
+        tol = SYMMETRY_RTOL * float(np.linalg.norm(V, axis=1).max())
+        for i, S in enumerate(sym):
+            if (np.abs(S.T @ S - np.eye(3)).max() > ROTATION_ATOL or abs(np.linalg.det(S) - 1.0) > ROTATION_ATOL):
+                raise RigidBodyError(
+                    f"body: 'symmetries[{i}]' = {S.tolist()} is not a proper rotation: expected an orthonormal "
+                    f"3x3 matrix with determinant +1 (det = {np.linalg.det(S):.6g}; tolerance {ROTATION_ATOL:g})")
+            W = V @ S.T
+            miss = float(np.linalg.norm(W[:, None, :] - V[None, :, :], axis=2).min(axis=1).max())
+            if miss > tol:
+                raise RigidBodyError(
+                    f"body: 'symmetries[{i}]' = {S.tolist()} does not map the boxes onto themselves: a rotated "
+                    f"corner is {miss:.3g} m from every corner (tolerance {tol:.3g} m = {SYMMETRY_RTOL:g} x the "
+                    "body's radius). Expected rotations about the centre of mass that leave the shape unchanged")
+        is_id = [bool(np.abs(S - np.eye(3)).max() <= ROTATION_ATOL) for S in sym]
+        rest = [S for S, e in zip(sym, is_id) if not e]
+        return np.stack([np.eye(3), *rest])
 
     @property
     def n_boxes(self) -> int:

@@ -1,7 +1,8 @@
 """Newton-Euler free flight with quaternions and its variational equations (seed eq. 1-2).
 
 State ``q = [X (3), Q (4), V (3), w (3)]`` (13,): centre-of-mass position X (m) and velocity V
-(m/s) in the world frame (the camera frame, as in the seed: x right, y down, z forward), the
+(m/s) in the world frame (the calibration's; the camera frame when its R = I, t = 0, as in the seed
+and in the rigid footage's calibration: x right, y down, z forward), the
 orientation quaternion ``Q = (w, x, y, z)`` mapping body to world, and the angular velocity ``w``
 in *body* axes (rad/s). The ODE (seed eq. 1) is::
 
@@ -11,7 +12,7 @@ Parameters ``p`` (14,) = ``[X0 (3), d (3), V0 (3), W0 (3), tilt, roll]``: initia
 a rotation vector ``d`` (rad, body axes) applied to a base orientation ``Q0 = Qb * exp(d)``, initial
 velocity, initial angular velocity ``W0`` in *world* axes (rad/s) and the two gravity angles (rad)
 with ``g = |g| (-sin roll, cos roll cos tilt, cos roll sin tilt)`` (tilt = roll = 0: gravity along
-+y, image down).
+world +y, image down when the world frame is the camera's).
 
 The sensitivities ``S = dq/dp`` (13, 14) obey ``S' = (dF/dq) S + dF/dp`` (variational equations),
 integrated together with the state by the same fixed-step RK4, so they are the exact derivatives of
@@ -32,6 +33,10 @@ N_PARAM = 14
 G_EARTH = 9.81
 
 PARAM_NAMES = ("x", "y", "z", "rx", "ry", "rz", "vx", "vy", "vz", "wx", "wy", "wz", "tilt", "roll")
+
+T0_TOL = 1e-9
+"""Seconds an output time may lie before ``t0`` (round-off in frame times); such a time gets the
+initial state. :func:`vidsim.rigid.fit.fit_throw` uses the same bound for the guess's ``t0``."""
 
 
 # ----------------------------------------------------------------------------- quaternions
@@ -139,7 +144,8 @@ def rotation_angle_deg(Ra: np.ndarray, Rb: np.ndarray) -> float:
 
 # ----------------------------------------------------------------------------- gravity
 def gravity_vector(tilt: float, roll: float, g: float = G_EARTH) -> np.ndarray:
-    """Gravity (3,) m/s^2 in camera axes from the two angles (radians)."""
+    """Gravity (3,) m/s^2 in world axes (the camera's when the calibration has R = I) from the two
+    angles (radians)."""
     return g * np.array([-np.sin(roll), np.cos(roll) * np.cos(tilt), np.cos(roll) * np.sin(tilt)])
 
 
@@ -328,8 +334,9 @@ def simulate(p: np.ndarray, q_base: np.ndarray, inertia: np.ndarray, times: np.n
         p: (14,) parameters (module docstring).
         q_base: (4,) base orientation quaternion.
         inertia: (3, 3) inertia about the centre of mass in body axes, kg m^2.
-        times: (T,) output times, seconds, non-decreasing and >= ``t0``.
-        t0: time of the initial state, seconds.
+        times: (T,) output times, seconds, finite, non-decreasing and >= ``t0`` (up to ``T0_TOL``).
+        t0: time of the initial state, seconds (finite: a NaN one integrated nothing and
+            returned the initial state at every time, flagged ok).
         hmax: largest RK4 step, seconds.
         sensitivities: integrate the variational equations too.
         g: gravity magnitude, m/s^2.
@@ -342,10 +349,21 @@ def simulate(p: np.ndarray, q_base: np.ndarray, inertia: np.ndarray, times: np.n
     times = np.ascontiguousarray(times, dtype=float)
     if times.ndim != 1 or times.size == 0:
         raise RigidBodyError(f"times must be a non-empty 1-D array, got shape {times.shape}")
-    if np.any(np.diff(times) < 0) or times[0] < t0 - 1e-12:
-        raise RigidBodyError("times must be non-decreasing and not before t0")
-    if not (hmax > 0):
-        raise RigidBodyError(f"hmax must be positive, got {hmax}")
+    try:
+        t0 = float(t0)
+    except (TypeError, ValueError):
+        raise RigidBodyError(f"t0 must be a finite time (s), got {t0!r}") from None
+    if not np.isfinite(t0):
+        raise RigidBodyError(f"t0 must be a finite time (s), got {t0}")
+    if not np.all(np.isfinite(times)):
+        raise RigidBodyError(f"times must be finite, got {times[~np.isfinite(times)].tolist()} at index "
+                             f"{np.flatnonzero(~np.isfinite(times)).tolist()}")
+    if np.any(np.diff(times) < 0):
+        raise RigidBodyError("times must be non-decreasing")
+    if times[0] < t0 - T0_TOL:
+        raise RigidBodyError(f"times must not be before t0 = {t0!r} (more than {T0_TOL:g} s), the first is {times[0]!r}")
+    if not (hmax > 0 and np.isfinite(hmax)):
+        raise RigidBodyError(f"hmax must be positive and finite, got {hmax}")
     I = np.ascontiguousarray(inertia, dtype=float)
     q0, S0 = initial_state(p, q_base)
     gv = gravity_vector(p[12], p[13], g)

@@ -79,27 +79,34 @@ def _candidate_to_dict(c: Candidate) -> dict:
     }
 
 
-def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
+def fit_to_dict(res: FitResult, body: BoxBody, cam: PinholeCamera | None = None) -> dict:
     """Plain (YAML-safe) dictionary of a fit: named parameters first, everything to rebuild it.
 
     Keys: ``format``; the named estimate at time ``t0`` (``position`` m, ``quaternion`` (w,x,y,z)
     body -> world, ``velocity`` m/s, ``omega_world`` rad/s, ``tilt``/``roll`` rad,
-    ``gravity_direction`` unit (3,) in the camera-defined world frame, ``gravity_magnitude`` m/s^2
+    ``gravity_direction`` unit (3,) in the calibration's world frame, ``gravity_magnitude`` m/s^2
     (known, not fitted), ``hmax`` the RK4 step bound, s); ``mean_iou``, ``iou`` (T,),
-    ``ambiguous``, ``distinct_alternatives``; ``params`` (14,) raw vector (:data:`PARAM_NAMES`);
+    ``ambiguous`` (true/false, or null with ``ambiguous_note`` when fewer than two candidates were
+    refined and nothing was compared), ``distinct_alternatives``; ``params`` (14,) raw vector
+    (:data:`PARAM_NAMES`);
     ``times`` (T,) s, ``frames`` (T,) footage indices, ``states`` (T, 13); ``history``;
     ``alternatives`` (list of candidates, best first), ``seconds``, ``n_starts``; ``object`` (the
     body's ``meta.yaml`` description, so a reader can rebuild it with ``BoxBody.from_meta``).
+    With ``cam``: ``world_frame`` (what the frame of the estimate is, and the calibration's ``R``,
+    ``t``: world -> camera) and ``gravity_direction_camera`` (``R`` times ``gravity_direction``):
+    every vector above is in the calibration's world frame, which is the camera frame only when
+    ``R = I, t = 0``.
 
     Args:
         res: the estimate.
         body: the body it was fitted with.
+        cam: the camera it was fitted with (optional: labels the frame).
 
     Returns:
         dictionary; :func:`fit_from_dict` inverts it exactly (floats survive YAML by repr).
     """
     g = gravity_vector(float(res.params[12]), float(res.params[13]), 1.0)
-    return {
+    d = {
         "format": FIT_FORMAT,
         "t0": float(res.t0),
         "position": res.params[0:3].tolist(),
@@ -112,7 +119,7 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
         "gravity_magnitude": float(res.gravity),
         "mean_iou": float(res.mean_iou),
         "iou": np.asarray(res.iou, float).tolist(),
-        "ambiguous": bool(res.ambiguous),
+        "ambiguous": None if res.ambiguous is None else bool(res.ambiguous),
         "distinct_alternatives": [int(i) for i in res.distinct],
         "param_names": list(PARAM_NAMES),
         "params": np.asarray(res.params, float).tolist(),
@@ -126,6 +133,23 @@ def fit_to_dict(res: FitResult, body: BoxBody) -> dict:
         "alternatives": [_candidate_to_dict(c) for c in res.alternatives],
         "object": body.to_meta(),
     }
+    if cam is not None:
+        d["world_frame"] = {
+            "note": ("position, quaternion, velocity, omega_world, gravity_direction and states are in the world "
+                     "frame of the calibration (R, t: world -> camera); " + (
+                         "here R = I and t = 0, so it is the camera frame (x right, y down, z forward)"
+                         if is_camera_frame(cam) else "here R != I or t != 0: it is NOT the camera frame")),
+            "R": np.asarray(cam.R, float).tolist(), "t": np.asarray(cam.t, float).tolist()}
+        d["gravity_direction_camera"] = (np.asarray(cam.R, float) @ g).tolist()
+    if res.ambiguous is None:
+        d["ambiguous_note"] = (f"not checked: {1 + len(res.alternatives)} candidate(s) refined, the two-solution "
+                               "report compares at least two (rigid.fit.multistart=none or a last screen_keep of 1)")
+    return d
+
+
+def is_camera_frame(cam: PinholeCamera, atol: float = 1e-9) -> bool:
+    """Whether the calibration's world frame is the camera frame (``R = I``, ``t = 0``)."""
+    return bool(np.allclose(cam.R, np.eye(3), rtol=0, atol=atol) and np.allclose(cam.t, 0.0, rtol=0, atol=atol))
 
 
 def _arr(d: dict, key: str, shape: tuple, where: str) -> np.ndarray:
@@ -181,10 +205,18 @@ def fit_from_dict(d: dict, where: str = "fit.yaml") -> FitResult:
         if key not in d:
             raise RigidBodyError(f"{where}: missing field '{key}'")
     return FitResult(params, q0, float(d["t0"]), times, frames, states, iou, float(d["mean_iou"]),
-                     [float(h) for h in d.get("history", [])], alts, bool(d.get("ambiguous", False)),
+                     [float(h) for h in d.get("history", [])], alts, _ambiguous(d, where),
                      float(d.get("seconds", 0.0)), int(d.get("n_starts", 0)),
                      [int(i) for i in d.get("distinct_alternatives", [])],
                      float(d.get("gravity_magnitude", G_EARTH)), float(d.get("hmax", 1.0 / 60.0)))
+
+
+def _ambiguous(d: dict, where: str) -> bool | None:
+    """``ambiguous`` of a fit.yaml: true/false, or null (not checked: fewer than two candidates)."""
+    v = d.get("ambiguous", False)
+    if v is None or isinstance(v, (bool, np.bool_)):
+        return None if v is None else bool(v)
+    raise RigidBodyError(f"{where}: field 'ambiguous' must be true, false or null (not checked), got {v!r}")
 
 
 def check_masks(masks: np.ndarray, times: np.ndarray, where: str = "masks.npz") -> tuple[np.ndarray, np.ndarray]:

@@ -148,3 +148,55 @@ def test_checkpoint_of_other_inputs_is_moved_aside_not_replayed(tmp_path):
                     checkpoint=ck)
     assert res.replayed_stages == 0
     assert (tmp_path / "stages.stale-2.jsonl").is_file()
+
+
+def test_stage_driver_fits_with_the_footages_gravity_magnitude():
+    """estimate_throw ignored meta['gravity_magnitude'] and fitted every throw with 9.81 m/s^2."""
+    from vidsim.rigid.stage import estimate_throw
+
+    th, _ = _throw(14)
+    guess = perturbed_guess(th.truth, np.random.default_rng(14), orient_deg=10.0)
+    cfg = {"screen": [Stage(0.25, 10, 2, 1.0)], "screen_keep": [1], "refine": [], "final": [], "multistart": "none"}
+    meta = {**th.meta, "gravity_magnitude": 1.62, "initial_guess": guess}
+    assert estimate_throw(None, th.times, th.camera, meta, fit_cfg=cfg, masks=th.masks).fit.gravity == 1.62
+    assert estimate_throw(None, th.times, th.camera, meta, fit_cfg=FitConfig(**cfg), masks=th.masks).fit.gravity == 1.62
+    no_g = {k: v for k, v in meta.items() if k != "gravity_magnitude"}  # absent: the settings' value
+    assert estimate_throw(None, th.times, th.camera, no_g, fit_cfg={**cfg, "gravity": 3.7}, masks=th.masks).fit.gravity == 3.7
+    with pytest.raises(RigidBodyError, match=r"'gravity' = 3\.7 m/s\^2 contradicts meta 'gravity_magnitude' = 1\.62"):
+        estimate_throw(None, th.times, th.camera, meta, fit_cfg={**cfg, "gravity": 3.7}, masks=th.masks)
+    with pytest.raises(RigidBodyError, match=r"meta: 'gravity_magnitude' must be a number \(m/s\^2\), got 'moon'"):
+        estimate_throw(None, th.times, th.camera, {**meta, "gravity_magnitude": "moon"}, fit_cfg=cfg, masks=th.masks)
+
+
+def test_stage_history_costs_no_extra_objective_evaluations(monkeypatch):
+    """The per-iteration history re-evaluated objective and gradient in scipy's callback (76 calls
+    for scipy's 58); it now records scipy's value of the iterate, the same number."""
+    from vidsim.rigid import fit as F
+
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    fr = F.visible_frames(th.masks)
+    p, q, _ = F._parse_guess(guess)
+    obj = F.SilhouetteObjective(body, th.camera, th.times[fr][:10], th.masks[fr][:10], float(th.times[fr][0]), 0.25, 1.0)
+    seen = {}
+    orig = F.minimize
+
+    def spy(*a, **k):
+        r = orig(*a, **k)
+        seen["nfev"], seen["nit"] = r.nfev, r.nit
+        return r
+
+    monkeypatch.setattr(F, "minimize", spy)
+    p1, q1, E, hist = F.run_stage(obj, p, q, 6)
+    assert seen["nit"] >= 2 and obj.n_evals == seen["nfev"]
+    assert len(hist) in (seen["nit"], seen["nit"] + 1) and hist[-1] == E
+    assert hist[seen["nit"] - 1] == pytest.approx(obj(p1, q1, grad=False)[0], rel=1e-9)  # the last iterate's value
+
+
+def test_ambiguity_is_unchecked_with_one_candidate_and_checked_with_two():
+    th, body = _throw(11)
+    guess = perturbed_guess(th.truth, np.random.default_rng(11), orient_deg=30.0)
+    one = fit_throw(th.masks, th.times, th.camera, body, guess, {**TINY, "multistart": "none"})
+    assert one.alternatives == [] and one.ambiguous is None and one.summary()["ambiguous"] is None
+    two = fit_throw(th.masks, th.times, th.camera, body, guess, {**TINY, "screen": [Stage(0.25, 10, 2, 1.0)]})
+    assert len(two.alternatives) == 1 and two.ambiguous in (True, False)

@@ -69,3 +69,65 @@ def test_masks_format_checks():
         check_masks(m, np.arange(3) / 30.0)
     with pytest.raises(RigidBodyError, match="increasing"):
         check_masks(m, np.array([0.0, 0.1, 0.1, 0.2]))
+
+
+def test_an_unchecked_two_solution_report_is_null_not_false(rng):
+    """With one refined candidate (multistart=none) fit.yaml said `ambiguous: false` as if the
+    two-solution check had been made; it is null with a note, and readers keep the null."""
+    res, body = _fit(rng)
+    res.alternatives, res.distinct, res.ambiguous = [], [], None
+    d = yaml.safe_load(yaml.safe_dump(fit_to_dict(res, body), sort_keys=False))
+    assert d["ambiguous"] is None and d["ambiguous_note"].startswith("not checked: 1 candidate(s) refined")
+    assert fit_from_dict(d).ambiguous is None
+    checked = fit_to_dict(_fit(rng)[0], body)
+    assert checked["ambiguous"] is True and "ambiguous_note" not in checked
+    assert fit_from_dict({k: v for k, v in d.items() if k != "ambiguous"}).ambiguous is False  # older files
+    with pytest.raises(RigidBodyError, match=r"'ambiguous' must be true, false or null .*got 'maybe'"):
+        fit_from_dict({**d, "ambiguous": "maybe"})
+
+
+def test_rigid_summary_reads_an_unchecked_ambiguity(tmp_path):
+    from hydra import compose, initialize_config_dir
+
+    from vidsim.cli import rigid_summary
+    from vidsim.config import CONF_DIR
+
+    errors = {"orientation_deg": 0.2, "omega_rel": 0.003, "position_rel_range": 0.001, "velocity_rel": 0.001,
+              "gravity_deg": 0.05, "mean_iou": 0.99, "mean_iou_footage": 0.98}
+    paths = []
+    for case, amb in (("a", None), ("b", False), ("c", True)):
+        p = tmp_path / case / "score.yaml"
+        p.parent.mkdir()
+        p.write_text(yaml.safe_dump({"seed": 1, "success": True, "errors": errors, "segmentation": {"mean_iou": 0.97},
+                                     "fit": {"seconds": 1.0, "n_starts": 1, "ambiguous": amb}, "effects_on": {}}))
+        paths.append(str(p))
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose("config", overrides=[f"paths.results={tmp_path}", f"rigid.paths.scores='{' '.join(paths)}'",
+                                           f"paths.out={tmp_path / 'out'}"])
+    rigid_summary.run(cfg)
+    rows = (tmp_path / "out" / "summary.csv").read_text().splitlines()
+    col = rows[0].split(",").index("ambiguous")
+    assert [r.split(",")[col] for r in rows[1:]] == ["unchecked", "False", "True"]
+
+
+def test_fit_yaml_names_the_calibrations_world_frame(rng):
+    """The estimate is in the calibration's world frame, called 'camera axes' although that holds
+    only while R = I, t = 0: fit.yaml labels the frame and gives gravity in camera axes."""
+    from vidsim.rigid.dynamics import rotvec_to_rot
+    from vidsim.rigid.outputs import is_camera_frame
+    from vidsim.video.camera import PinholeCamera
+
+    res, body = _fit(rng)
+    K = [[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]
+    cam = PinholeCamera(K)
+    d = fit_to_dict(res, body, cam)
+    assert is_camera_frame(cam) and "so it is the camera frame" in d["world_frame"]["note"]
+    assert d["gravity_direction_camera"] == d["gravity_direction"]
+    R = rotvec_to_rot(np.array([0.3, 0.0, 0.1]))
+    tilted = PinholeCamera(K, R, [0.0, 0.0, 0.5])
+    d = fit_to_dict(res, body, tilted)
+    assert not is_camera_frame(tilted) and "NOT the camera frame" in d["world_frame"]["note"]
+    assert np.allclose(d["gravity_direction_camera"], R @ np.asarray(d["gravity_direction"]))
+    assert np.array_equal(d["world_frame"]["R"], R.tolist())
+    assert fit_from_dict(yaml.safe_load(yaml.safe_dump(d))).mean_iou == res.mean_iou  # readers ignore the labels
+    assert "world_frame" not in fit_to_dict(res, body)
