@@ -13,7 +13,19 @@ from vidsim.gap.suite import run_case
 
 
 @pytest.mark.slow
-def test_withheld_com_offset_is_named_first_and_recovered_from_mujoco_footage():
+def test_withheld_com_offset_is_named_first_and_recovered_from_mujoco_footage(monkeypatch):
+    import numpy as np
+
+    import vidsim.gap.suite as suite
+
+    seen = {}
+    real = suite.diagnose_rigid
+
+    def spy(*args, **kw):
+        seen["args"], seen["kw"] = args, kw
+        return real(*args, **kw)
+
+    monkeypatch.setattr(suite, "diagnose_rigid", spy)
     case = yaml.safe_load(open(f"{CONF_DIR}/gap/default.yaml"))["cases"]["com_offset"]
     diag, score, masks, th = run_case(case)
     assert score["correct"] and score["named_first"] == "com_offset", score
@@ -21,4 +33,10 @@ def test_withheld_com_offset_is_named_first_and_recovered_from_mujoco_footage():
     assert score["closure"]["com_offset"] >= 0.5, score
     assert score["recovery"]["com_offset"]["rel_error"] <= 0.30, score["recovery"]
     # the diagnosis was handed the footage, times, camera, body and the fit: the truth only scores
-    assert masks.shape[0] == len(th.times)
+    args = list(seen["args"]) + list(seen["kw"].values())
+    assert not any(a is th.truth for a in args)
+    fit = args[4]
+    assert isinstance(fit, dict) and not {"effects", "capture_times", "seed"} & set(fit), sorted(fit)
+    for k in ("position", "quaternion", "velocity", "omega_world"):  # the fit's estimates, not the truth's values
+        assert not np.array_equal(np.asarray(fit[k], float), np.asarray(th.truth[k], float)), k
+    assert np.array_equal(args[1], th.times)  # the footage's times
