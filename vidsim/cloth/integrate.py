@@ -6,7 +6,8 @@
   time-symmetric sibling) at a fixed sub-step chosen from the stiffest mode, one force
   evaluation per step. Symplectic, so it adds no artificial damping to undamped
   oscillations; its only constraint is the stability limit h < 2/omega_max.
-  Velocity-dependent forces (damping, drag) use the half-step velocity (explicit).
+  Velocity-dependent forces (damping, drag) use the half-step velocity (explicit), which
+  makes the scheme first order once they are on (second order for conservative forces).
   Optionally multirate (impulse / r-RESPA, Tuckerman, Berne & Martyna 1992): the bending
   forces, whose modes are far slower than stretch's on a stiff fabric, kick the velocities
   once per ``r`` steps.
