@@ -311,8 +311,12 @@ def skirt(
 
     Ring 0 is the waistband (tag ``waistband``) at ``waist_center``; ring ``n_down - 1``
     is the hem, ``length`` below along the slant. Material u runs around the hoop, v
-    down the slant; each triangle's rest (u, v) is its exact development (the cone is
-    developable), so the rest metric is the cone's own.
+    down the slant; each triangle's rest (u, v) is the flat triangle itself laid in its
+    plane, u along the hoop's tangent at its centroid, so the sewn skirt is stress-free
+    (zero stretch and shear energy) at rest. (Until 5 Dec 2026 the rest (u, v) came from the
+    smooth cone's development, whose hoop arcs are longer than the mesh's chords: every hoop
+    edge was compressed at rest, -0.44 % at 18 around, a hoop stress comparable to the
+    gravity tension that drives the skirt's folds; review.)
 
     Args:
         n_around: vertices per ring, >= 3.
@@ -368,6 +372,27 @@ def skirt(
     else:
         u = waist_radius * (ph_u - ph_c)
         v = sv
-    uv = np.stack([u, v], axis=-1)
+    dev = np.stack([u, v], axis=-1)  # the smooth cone's development: orientation and directions only
+    # each flat triangle in its own plane: u along the hoop tangent at the centroid (projected
+    # into the plane), v across it, mirrored where needed to keep the development's orientation
+    P = X[T]
+    nrm = np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    tan = np.stack([-np.sin(ph_c[:, 0]), np.cos(ph_c[:, 0]), np.zeros(len(T))], axis=1)
+    e_u = tan - np.einsum("ij,ij->i", tan, nrm)[:, None] * nrm
+    e_u /= np.linalg.norm(e_u, axis=1, keepdims=True)
+    e_v = np.cross(nrm, e_u)
+    D = P - P.mean(axis=1, keepdims=True)
+    uv = np.stack([np.einsum("tkj,tj->tk", D, e_u), np.einsum("tkj,tj->tk", D, e_v)], axis=-1)
+
+    def signed_area(q: np.ndarray) -> np.ndarray:
+        a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+        return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+    mirror = np.sign(signed_area(uv)) != np.sign(signed_area(dev))
+    uv[mirror, :, 1] *= -1.0
+    # v down the slant, as in the development
+    down = np.einsum("tk,tk->t", dev[:, :, 1] - dev[:, :, 1].mean(1, keepdims=True), uv[:, :, 1]) < 0
+    uv[down] *= -1.0  # a half-turn keeps the orientation
     tags = {"waistband": np.arange(n_around), "hem": np.arange((n_down - 1) * n_around, n_down * n_around)}
     return ClothMesh(X, T, uv, tags, flat_rest_bend=flat_rest_bend)
