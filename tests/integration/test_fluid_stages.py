@@ -149,6 +149,28 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     assert 'edit/second_boat,"flicker in static regions, output (grey levels)"' in table
 
 
+def test_edit_stage_foreign_checkpoint_is_one_line_naming_the_file(stream, tmp_path):
+    """A file where the checkpoint goes that has no ``key`` array (or is no .npz at all)
+    stops the stage with one line naming it, before any optimisation."""
+    import vidsim.cli.fluid_edit as stage
+    from vidsim.errors import ConfigError
+
+    res, foot, flow = stream
+    spec = tmp_path / "second_boat.yaml"
+    spec.write_text(yaml.safe_dump(EDIT))
+    out = tmp_path / "edit" / "second_boat"
+    out.parent.mkdir()
+    ckpt = out.parent / f".{out.name}.ckpt.npz"
+    for write, expected in ((lambda: np.savez(ckpt, v=np.zeros(3)), "no array(s) ['key', 'step', 'it', 'hist']"),
+                            (lambda: ckpt.write_text("not a zip"), "unreadable fluid_edit checkpoint")):
+        write()
+        with pytest.raises(ConfigError) as e:
+            stage.run(_compose(res, foot, flow, spec, out))
+        msg = str(e.value)
+        assert msg.startswith(f"{ckpt}: ") and expected in msg and "\n" not in msg, msg
+        assert ckpt.is_file() and not out.exists()
+
+
 def _bad(d: dict) -> dict:
     return json.loads(json.dumps(d))
 

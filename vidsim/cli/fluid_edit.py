@@ -147,6 +147,32 @@ def _spec_key(raw: dict, n_frames: int, iterations: int, footage: Path, flow: np
     return h.hexdigest()[:16]
 
 
+CHECKPOINT_ARRAYS = ("key", "v", "step", "it", "hist")
+
+
+def _read_checkpoint(ckpt: Path, key: str) -> dict[str, np.ndarray] | None:
+    """The optimiser state of ``ckpt`` if it belongs to ``key`` (None if absent or of other
+    settings); a file that is not a readable checkpoint is a one-line :class:`ConfigError`
+    naming it (it is not deleted: it may be somebody's file)."""
+    if not ckpt.is_file():
+        return None
+    try:
+        with np.load(ckpt, allow_pickle=False) as z:
+            missing = [k for k in CHECKPOINT_ARRAYS if k not in z.files]
+            if missing:
+                raise ConfigError(f"{ckpt}: not a fluid_edit checkpoint (no array(s) {missing}; arrays: {z.files}); "
+                                  "delete it to start the optimisation afresh")
+            if str(z["key"]) != key:
+                print(f"fluid_edit: ignoring checkpoint {ckpt} of a different edit/settings", flush=True)
+                return None
+            resume = {k: z[k] for k in CHECKPOINT_ARRAYS[1:]}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ConfigError(f"{ckpt}: unreadable fluid_edit checkpoint ({type(e).__name__}: {e}); "
+                          "delete it to start the optimisation afresh") from None
+    print(f"fluid_edit: resuming the optimisation at iteration {int(resume['it'])} from {ckpt}", flush=True)
+    return resume
+
+
 def run(cfg: DictConfig) -> None:
     ec = cfg.fluid.edit
     spec, raw = load_edit(ec.spec)
@@ -195,14 +221,7 @@ def run(cfg: DictConfig) -> None:
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
     key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
-    resume = None
-    if ckpt.is_file():
-        with np.load(ckpt) as z:
-            if str(z["key"]) == key:
-                resume = {k: z[k] for k in ("v", "step", "it", "hist")}
-                print(f"fluid_edit: resuming the optimisation at iteration {int(resume['it'])} from {ckpt}", flush=True)
-            else:
-                print(f"fluid_edit: ignoring checkpoint {ckpt} of a different edit/settings", flush=True)
+    resume = _read_checkpoint(ckpt, key)
     iters = spec.optimizer.iterations
     bars: dict[str, Progress] = {}  # made at the first step, so their clocks start there
 

@@ -6,21 +6,26 @@ The field ``v`` is ``(H, W, 2)`` in grid nodes per frame on the edit grid. The o
 * ``Ef`` flow conservation: mean over source particles of the squared distance from the
   particle's exit point to its desired sink (eq. 18, ``c_des . d^2``). Particles are traced
   along the streamlines of the field (arc-length steps, so the exit point depends on the
-  direction field only). Its gradient with respect to every node velocity is computed exactly
-  for the discrete tracer by reverse-mode differentiation through the trace (the adjoint of
-  the finite-difference gradient of eq. 22); a test checks it against central differences.
+  direction field only). Its gradient with respect to every node velocity is computed by
+  reverse-mode differentiation through the discrete trace (the adjoint of the finite-difference
+  gradient of eq. 22). It is exact for particles that end within the step limit (in a sink, on
+  an obstacle or at the frame edge; a test checks it against central differences). For a
+  particle still circulating at the step limit the adjoint is clipped to keep it bounded, so its
+  contribution is a bounded descent direction, not the exact derivative.
 * ``Es`` smoothness: sum over 4-connected pairs of ``|v_i - v_j|^2`` (eq. 23-24), per node.
 * ``En`` neighbourhood: squared distance of every node's 3x3 velocity patch to its nearest
   patch of the video field (eq. 25-29), nearest neighbours by a KD-tree; its gradient holds the
   matches fixed (exact almost everywhere).
 
-The local minimum of the continuous formulation (seed Figure 15) is avoided by a harmonic
-initialisation: per sink, a harmonic potential (Dirichlet 0 on the sink, 1 on the sources, the
-other sinks and the channels claimed by other sinks' particles; Neumann at obstacles and at the
-frame edge) whose
-discrete steepest-descent paths from every source node reach the desired sink (a harmonic
-function has no interior minimum), and a velocity field that follows the potential of the
-sink whose channel is nearest.
+The local minimum of the continuous formulation (seed Figure 15) is avoided by the
+initialisation of :func:`harmonic_init`: per sink, in order, shortest paths (Dijkstra, 8-connected)
+from its source nodes claim channels that are walls for the sinks after it; per sink, a
+flux-driven potential (the graph Poisson equation with unit injection at the sink's own source
+nodes, Dirichlet 0 on the sink, Neumann at walls: obstacles, the frame edge, other sinks, other
+sinks' sources and their channels) has its only minimum on the sink, so steepest descent from any
+node connected to it ends there; the field in the region nearest each channel follows the sum of
+the directions of that potential and of the geodesic distance to the sink, and on and beside the
+channels the channel's own direction.
 """
 
 from __future__ import annotations
