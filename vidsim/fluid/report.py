@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from vidsim.fluid.metrics import MIN_STATIC_PX
+from vidsim.fluid.metrics import DETAIL_RATIO_MIN, MIN_STATIC_PX, PATCH_RATIO_MAX
 
 COLUMNS = ("item", "quantity", "value", "target", "met")
 
@@ -60,9 +60,17 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
             rows.append(_row(item, "rendered-flow EPE vs edited field px/frame", s["rendered_flow_epe_px"],
                              "<= 1 (synthetic scenes)", None if real else s["rendered_flow_epe_px"] <= 1.0))
             rows.append(_row(item, "edited field mean speed px/frame (scale of the EPE above)", s["edited_speed_mean_px"], "", None))
-            rows.append(_row(item, "patch-distance ratio", s["patch_distance_ratio"], "<= 1.5", s["patch_distance_ratio"] <= 1.5))
+            pr = s["patch_distance_ratio"]
+            if "patch_coherence_ratio" in s:
+                q = (f"patch-distance ratio (max of coherence {s['patch_coherence_ratio']:.3f} and "
+                     f"completeness {s['patch_completeness_ratio']:.3f})")
+            else:
+                q = "patch-distance ratio"
+            rows.append(_row(item, q, pr, f"<= {PATCH_RATIO_MAX}", None if math.isnan(pr) else pr <= PATCH_RATIO_MAX))
             if "detail_ratio" in s:
-                rows.append(_row(item, "detail-contrast ratio output/source (wash-out < 1)", s["detail_ratio"], "", None))
+                dr = s["detail_ratio"]
+                rows.append(_row(item, "detail-contrast ratio output/source (wash-out < 1)", dr, f">= {DETAIL_RATIO_MIN}",
+                                 None if math.isnan(dr) else dr >= DETAIL_RATIO_MIN))
             fo, fs = s["flicker_output"], s["flicker_source"]
             ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
             if math.isnan(fs):

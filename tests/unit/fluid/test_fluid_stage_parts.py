@@ -119,6 +119,12 @@ def test_metrics_table_flags_missed_targets():
     assert r["flicker in static regions, output"]["met"] == ""
     assert "not measurable" in r["flicker in static regions, output"]["target"]
     assert r["detail-contrast ratio output/source"]["value"] == 0.9
+    assert r["detail-contrast ratio output/source"]["met"] == "yes"
+    washed = {**flame, "detail_ratio": 0.7, "patch_distance_ratio": 1.6, "patch_coherence_ratio": 0.6,
+              "patch_completeness_ratio": 1.6}
+    r = {x["quantity"].split(" (")[0]: x for x in metrics_rows([washed])}
+    assert r["detail-contrast ratio output/source"]["met"] == "NO"
+    assert r["patch-distance ratio"]["met"] == "NO" and "completeness 1.600" in r["patch-distance ratio"]["quantity"]
     assert r["motion-compensated flicker, whole frame, output"]["value"] == 1.1
     with pytest.raises(ValueError, match="not a fluid_flow"):
         metrics_rows([{"something": 1}])
