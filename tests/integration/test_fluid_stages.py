@@ -96,7 +96,7 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     ref = json.loads((ref_out / "summary.json").read_text())
     # the edit's measured figures (issue 8 targets)
     assert ref["fraction_in_desired_sink"] >= 0.98
-    assert ref["rendered_flow_epe_px"] <= 1.0
+    assert ref["rendered_flow_epe_rel"] <= 0.5  # of the edited field's mean speed (a frozen render: 1)
     assert ref["patch_distance_ratio"] <= 1.5
     assert ref["flicker_output"] <= ref["flicker_source"] or np.isnan(ref["flicker_source"])
     assert ref["frames"] == 16 and ref["iterations"] > 3

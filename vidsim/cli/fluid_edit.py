@@ -265,6 +265,8 @@ def run(cfg: DictConfig) -> None:
         "iterations": int(res.figures["iterations"]), "objective": float(res.figures["E"]),
         "rendered_flow_epe_px": float(figs["rendered_flow_epe_px"]),
         "edited_speed_mean_px": float(figs["edited_speed_mean_px"]),
+        "rendered_flow_epe_rel": float(figs["rendered_flow_epe_rel"]),
+        "edited_speed_epe_mask_px": float(figs["edited_speed_epe_mask_px"]),
         "patch_distance_ratio": float(figs["patch_distance"]["ratio"]),
         "patch_coherence_ratio": float(figs["patch_distance"]["coherence_ratio"]),
         "patch_completeness_ratio": float(figs["patch_distance"]["completeness_ratio"]),
@@ -278,7 +280,8 @@ def run(cfg: DictConfig) -> None:
         "total_s": total, "resumed_from_iteration": int(resume["it"]) if resume is not None else 0,
     }
     print("fluid_edit: " + ", ".join(f"{k} {summary[k]:.3f}" for k in (
-        "fraction_in_desired_sink", "rendered_flow_epe_px", "patch_distance_ratio", "detail_ratio", "flicker_output",
+        "fraction_in_desired_sink", "rendered_flow_epe_px", "rendered_flow_epe_rel", "patch_distance_ratio", "detail_ratio",
+        "flicker_output",
         "flicker_source")), flush=True)
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)

@@ -1,7 +1,8 @@
 """Measured figures of a rendered edit: motion agreement, patch fidelity, flicker.
 
 * :func:`rendered_flow_epe`: optical flow measured on the rendered frames against the edited
-  field (px/frame), average endpoint error.
+  field (px/frame), average endpoint error; :func:`relative_epe` divides it by the field's
+  mean speed on the same mask (a frozen render scores 1; target :data:`EPE_REL_MAX`).
 * :func:`patch_distance_ratio`: how close output patches are to their nearest source patch
   elsewhere (coherence) and source patches to their nearest output patch elsewhere
   (completeness), relative to how close the source's own patches are to each other elsewhere
@@ -37,11 +38,34 @@ def rendered_flow_epe_frames(frames: np.ndarray, edited_field: np.ndarray, borde
     fl = estimate_flow(frames) if flow is None else flow
     ef = np.broadcast_to(np.asarray(edited_field, np.float64)[-fl.shape[0]:] if np.ndim(edited_field) == 4
                          else edited_field, fl.shape)
-    m = np.zeros(fl.shape[1:3], bool)
-    m[border:fl.shape[1] - border, border:fl.shape[2] - border] = True
+    m = epe_mask(fl.shape[1:3], border, mask)
+    return np.array([endpoint_error(fl[i], ef[i], m) for i in range(fl.shape[0])])
+
+
+#: target of the rendered-flow EPE relative to the edited field's mean speed over the same mask
+EPE_REL_MAX = 0.5
+
+
+def epe_mask(shape: tuple[int, int], border: int = 8, mask: np.ndarray | None = None) -> np.ndarray:
+    """The pixels the rendered-flow EPE is averaged over: ``(H, W)`` bool, ``border`` px from
+    the frame edge excluded, and pixels where ``mask`` is False."""
+    m = np.zeros(shape, bool)
+    m[border:shape[0] - border, border:shape[1] - border] = True
     if mask is not None:
         m &= mask
-    return np.array([endpoint_error(fl[i], ef[i], m) for i in range(fl.shape[0])])
+    return m
+
+
+def relative_epe(epe: float, edited_field: np.ndarray, border: int = 8,
+                 mask: np.ndarray | None = None) -> tuple[float, float]:
+    """``(epe / speed, speed)``: the rendered-flow EPE over the edited field's mean speed
+    (px/frame) on the EPE's own mask (:func:`epe_mask`). A render that does not move (flow 0)
+    scores exactly 1, one that moves against the field about 2; target :data:`EPE_REL_MAX`.
+    NaN if the field does not move there."""
+    f = np.asarray(edited_field, np.float64)
+    m = epe_mask(f.shape[-3:-1], border, mask)
+    speed = float(np.linalg.norm(f, axis=-1)[..., m].mean()) if m.any() else float("nan")
+    return (epe / speed if speed > 0 else float("nan")), speed
 
 
 def _patches_at(frames: np.ndarray, t: np.ndarray, y: np.ndarray, x: np.ndarray, p: int) -> np.ndarray:

@@ -16,7 +16,7 @@ import numpy as np
 from vidsim.fluid.edit import EditSpec, EditSpecError
 from vidsim.fluid.flow import FlowMethod, estimate_flow
 from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, flicker, patch_distance_ratio,
-                                  rendered_flow_epe_frames, static_mask)
+                                  relative_epe, rendered_flow_epe_frames, static_mask)
 from vidsim.fluid.optimize import EditResult, edit_field
 from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
 
@@ -69,7 +69,8 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     Returns:
         dict with ``frames`` (n,H',W',3) uint8, ``edited_field_px`` (H',W',2), ``edit``
         (:class:`EditResult`), ``source_flow`` and ``figures`` (flow-conservation fraction,
-        rendered-flow EPE in px/frame, patch-distance ratio, detail-contrast ratio, flicker of
+        rendered-flow EPE in px/frame and relative to the edited field's mean speed on the same
+        pixels, patch-distance ratio, detail-contrast ratio, flicker of
         output and source in grey levels in their static regions (NaN: fewer than
         ``MIN_STATIC_PX`` static pixels) and motion-compensated over the whole frame, timings)
         and ``epe_frames`` (n-1,) the rendered-flow EPE per frame pair.
@@ -95,6 +96,9 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     epe_frames = rendered_flow_epe_frames(out, field_px, border=border, flow=out_flow)
     figs["rendered_flow_epe_px"] = float(epe_frames.mean())
     figs["edited_speed_mean_px"] = float(np.linalg.norm(field_px, axis=-1).mean())
+    # the EPE's scale: the field's mean speed on the same pixels (what a frozen render scores)
+    figs["rendered_flow_epe_rel"], figs["edited_speed_epe_mask_px"] = relative_epe(figs["rendered_flow_epe_px"], field_px,
+                                                                                    border)
     figs["patch_distance"] = patch_distance_ratio(out, src, rng=rng)
     figs["detail_ratio"] = detail_contrast(out) / max(detail_contrast(src), 1e-12)
     # static regions: each sequence's own (edited field / time-median source flow < 0.1 px/frame)

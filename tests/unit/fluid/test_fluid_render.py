@@ -9,7 +9,8 @@ import pytest
 
 from vidsim.fluid.edit import EditSpec, RenderSettings
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.metrics import compensated_flicker, flicker, patch_distance_ratio, rendered_flow_epe, static_mask
+from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio, relative_epe,
+                                  rendered_flow_epe, static_mask)
 from vidsim.fluid.pipeline import run_edit
 from vidsim.fluid.render import RenderInputError, _compose, _consistency, render_sequence
 from vidsim.reality.fluid import make_scene
@@ -29,9 +30,18 @@ def test_advected_render_moves_with_edited_field(stream):
     assert out.shape == (24, 96, 96, 3) and out.dtype == np.uint8
     epe = rendered_flow_epe(out, field, border=12)
     wrong = rendered_flow_epe(out, -field, border=12)  # the same field running backwards
-    print("render:", figs, "EPE", epe, "reversed", wrong)
-    assert epe <= 1.0
+    rel, speed = relative_epe(epe, field, border=12)
+    # renders that do not follow the field must miss the relative target: a frozen output
+    # (frame 0 repeated) and an output rendered with the field reversed
+    frozen = rendered_flow_epe(np.repeat(out[:1], 8, 0), field, border=12)
+    out_rev, _ = render_sequence(frames, flow, -field, 12, np.random.default_rng(0), RenderSettings(), match_flow=field)
+    reversed_render = rendered_flow_epe(out_rev, field, border=12)
+    print("render:", figs, "EPE", epe, "relative", rel, "speed", speed, "frozen", frozen, "reversed render",
+          reversed_render)
+    assert rel <= EPE_REL_MAX
     assert epe < 0.5 * wrong
+    assert relative_epe(frozen, field, border=12)[0] > EPE_REL_MAX
+    assert relative_epe(reversed_render, field, border=12)[0] > EPE_REL_MAX
     ratio = patch_distance_ratio(out, frames)["ratio"]
     assert ratio <= 1.5
 
@@ -161,7 +171,8 @@ def test_run_edit_second_boat(stream):
     f = r["figures"]
     print("second boat:", f)
     assert f["edit"]["fraction_in_desired_sink"] >= 0.98
-    assert f["rendered_flow_epe_px"] <= 1.0
+    assert f["rendered_flow_epe_rel"] <= EPE_REL_MAX
+    assert f["rendered_flow_epe_rel"] == pytest.approx(f["rendered_flow_epe_px"] / f["edited_speed_epe_mask_px"])
     assert r["frames"].shape == (16, 96, 96, 3)
 
 

@@ -102,12 +102,20 @@ def test_flow_colours_code_direction_and_speed():
 
 def test_metrics_table_flags_missed_targets():
     edit = {"edit": "e", "footage": "fluid_x", "fraction_in_desired_sink": 0.97, "fraction_in_desired_sink_init": 0.5,
-            "rendered_flow_epe_px": 1.2, "edited_speed_mean_px": 1.0, "patch_distance_ratio": 1.4,
+            "rendered_flow_epe_px": 0.6, "edited_speed_mean_px": 1.0, "rendered_flow_epe_rel": 0.6,
+            "edited_speed_epe_mask_px": 1.0, "patch_distance_ratio": 1.4,
             "flicker_output": 1.0, "flicker_source": 2.0, "render_s_per_frame": 0.1, "optimise_s": 1.0}
     mb = {"method": "dis_fine", "epe_px": {"RubberWhale": {"dis_fine": 0.3, "dis_medium": 0.2}}}
     rows = {(r["item"], r["quantity"].split(" (")[0]): r["met"] for r in metrics_rows([edit, mb])}
     assert rows[("edit/e", "fraction of particles in desired sink")] == "NO"
-    assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"
+    assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"  # 0.6 px/frame > 0.5 x 1.0
+    assert rows[("edit/e", "rendered-flow EPE / edited field's mean speed on the same pixels")] == "NO"
+    ok = {r["quantity"].split(" (")[0]: r["met"] for r in metrics_rows([{**edit, "rendered_flow_epe_rel": 0.4}])}
+    assert ok["rendered-flow EPE vs edited field px/frame"] == "yes"
+    # a summary from before the relative target: the figure, no verdict
+    old = {k: v for k, v in edit.items() if k not in ("rendered_flow_epe_rel", "edited_speed_epe_mask_px")}
+    assert {r["quantity"].split(" (")[0]: r["met"] for r in metrics_rows([old])}[
+        "rendered-flow EPE vs edited field px/frame"] == ""
     assert rows[("edit/e", "patch-distance ratio")] == "yes"
     assert rows[("edit/e", "flicker in static regions, output")] == "yes"
     assert rows[("middlebury/RubberWhale", "epe_px")] == "NO"
