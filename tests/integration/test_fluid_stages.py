@@ -98,7 +98,9 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     assert ref["fraction_in_desired_sink"] >= 0.98
     assert ref["rendered_flow_epe_rel"] <= 0.5  # of the edited field's mean speed (a frozen render: 1)
     assert ref["patch_distance_ratio"] <= 1.5
-    assert ref["flicker_output"] <= ref["flicker_source"] or np.isnan(ref["flicker_source"])
+    # one mask for both (static in both, declared obstacles excluded): both measured or both null
+    fo, fs = ref["flicker_output"], ref["flicker_source"]
+    assert (fo is None and fs is None) or fo <= fs
     assert ref["frames"] == 16 and ref["iterations"] > 3
     import av
 
@@ -146,7 +148,7 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     table = (mout / "metrics.csv").read_text()
     assert "edit/second_boat,fraction of particles in desired sink,1.0000,>= 0.98,yes" in table
     assert "edit/second_boat,patch-distance ratio (max of coherence " in table
-    assert 'edit/second_boat,"flicker in static regions, output (grey levels)"' in table
+    assert 'edit/second_boat,"flicker in static regions, output (grey levels; pixels static in the edited field' in table
 
 
 def test_edit_stage_foreign_checkpoint_is_one_line_naming_the_file(stream, tmp_path):

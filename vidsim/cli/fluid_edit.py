@@ -273,6 +273,7 @@ def run(cfg: DictConfig) -> None:
         "detail_ratio": float(figs["detail_ratio"]),
         "flicker_output": float(figs["flicker_output"]), "flicker_source": float(figs["flicker_source"]),
         "flicker_mc_output": float(figs["flicker_mc_output"]), "flicker_mc_source": float(figs["flicker_mc_source"]),
+        "static_fraction": float(figs["static_fraction"]),
         "static_fraction_output": float(figs["static_fraction_output"]),
         "static_fraction_source": float(figs["static_fraction_source"]),
         "frames": int(n_frames), "width": int(W), "height": int(H),

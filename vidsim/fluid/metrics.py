@@ -167,6 +167,26 @@ def flicker(frames: np.ndarray, static: np.ndarray, min_px: int = 1) -> float:
     return float(np.abs(np.diff(g, axis=0))[:, static].mean())
 
 
+def static_flicker(out: np.ndarray, src: np.ndarray, field: np.ndarray, src_flow: np.ndarray,
+                   solid: np.ndarray | None = None, min_px: int = MIN_STATIC_PX) -> dict[str, float]:
+    """Flicker of output and source on ONE mask: the pixels static in both the edited
+    ``field`` (H,W,2) and the source's time-median ``src_flow`` ((T-1,)H,W,2) (:func:`static_mask`),
+    minus ``solid`` (H,W) (declared obstacles: the renderer holds their source frame, so they
+    cannot flicker). ``flicker_output``/``flicker_source`` are NaN when fewer than ``min_px``
+    pixels remain; ``static_fraction`` is the mask's share of the frame, ``static_fraction_output``
+    / ``_source`` those of each sequence's own static region."""
+    st_out = static_mask(field)
+    st_src = static_mask(src_flow)
+    st = st_out & st_src
+    if solid is not None:
+        st &= ~solid
+    ok = st.sum() >= min_px
+    return {"flicker_output": flicker(out, st) if ok else float("nan"),
+            "flicker_source": flicker(src, st) if ok else float("nan"),
+            "static_fraction": float(st.mean()), "static_fraction_output": float(st_out.mean()),
+            "static_fraction_source": float(st_src.mean())}
+
+
 def detail_contrast(frames: np.ndarray) -> float:
     """Fine-detail contrast (grey levels): the standard deviation of each frame's grey level
     minus its Gaussian blur (sigma 2 px), averaged over frames. The output's over the source's

@@ -82,13 +82,13 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
                                  None if math.isnan(dr) else dr >= DETAIL_RATIO_MIN))
             fo, fs = s["flicker_output"], s["flicker_source"]
             ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
-            if math.isnan(fs):
-                target = f"no static source region of >= {MIN_STATIC_PX} px: not measurable"
-            elif math.isnan(fo):
-                target = f"<= source ({fs:.3f}); no static output region of >= {MIN_STATIC_PX} px: not measurable"
+            if math.isnan(fs) or math.isnan(fo):
+                target = (f"no region of >= {MIN_STATIC_PX} px static in both output and source (declared obstacles "
+                          "excluded): not measurable")
             else:
-                target = f"<= source ({fs:.3f})"
-            rows.append(_row(item, "flicker in static regions, output (grey levels)", fo, target, ok))
+                target = f"<= source ({fs:.3f}) on the same pixels"
+            rows.append(_row(item, "flicker in static regions, output (grey levels; pixels static in the edited field and "
+                             "the source, declared obstacles excluded)", fo, target, ok))
             if "flicker_mc_output" in s:
                 rows.append(_row(item, "motion-compensated flicker, whole frame, output (grey levels; source "
                                  f"{s['flicker_mc_source']:.3f})", s["flicker_mc_output"], "", None))
