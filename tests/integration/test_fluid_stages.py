@@ -102,6 +102,8 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
     fo, fs = ref["flicker_output"], ref["flicker_source"]
     assert (fo is None and fs is None) or fo <= fs
     assert ref["frames"] == 16 and ref["iterations"] > 3
+    # how long the particles take along the field, and how many arrive within the clip
+    assert ref["arrival_frames_median"] > 0 and 0.0 <= ref["fraction_arriving_within_render"] <= 1.0
     import av
 
     with av.open(str(ref_out / "edit.mp4")) as c:
@@ -146,7 +148,7 @@ def test_edit_stage_killed_midway_resumes_to_the_uninterrupted_result(stream, tm
              f"fluid.inputs=[{flow / 'summary.json'},{out / 'summary.json'}]")
     assert r.returncode == 0, r.stderr[-2000:]
     table = (mout / "metrics.csv").read_text()
-    assert "edit/second_boat,fraction of particles in desired sink,1.0000,>= 0.98,yes" in table
+    assert "edit/second_boat,fraction of source particles whose streamline ends in the desired sink,1.0000,>= 0.98,yes" in table
     assert "edit/second_boat,patch-distance ratio (max of coherence " in table
     assert 'edit/second_boat,"flicker in static regions, output (grey levels; pixels static in the edited field' in table
 

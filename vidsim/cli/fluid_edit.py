@@ -244,8 +244,11 @@ def run(cfg: DictConfig) -> None:
     total = time.perf_counter() - t0
     res, figs, outf = r["edit"], r["figures"], r["frames"]
     print(f"fluid_edit: optimisation stopped after {res.figures['iterations']} iterations "
-          f"({res.figures['time_s']:.1f} s); {100 * res.figures['fraction_in_desired_sink']:.1f} % of "
-          f"{len(res.desired)} particles in their desired sink", flush=True)
+          f"({res.figures['time_s']:.1f} s); the streamlines of {100 * res.figures['fraction_in_desired_sink']:.1f} % "
+          f"of {len(res.desired)} source particles end in their desired sink "
+          f"({100 * res.figures['fraction_in_desired_sink_init']:.1f} % at initialisation; median "
+          f"{res.figures['arrival_frames_median']:.0f} frames to get there, "
+          f"{100 * figs['fraction_arriving_within_render']:.1f} % within the {n_frames} rendered frames)", flush=True)
     if not res.ok:
         raise ConfigError(f"{ec.spec}: the optimisation became non-finite (objective NaN/inf); check weights and step")
     names = [s.name for s in spec.sinks]
@@ -262,6 +265,9 @@ def run(cfg: DictConfig) -> None:
         "fraction_in_desired_sink": float(res.figures["fraction_in_desired_sink"]),
         "fraction_in_desired_sink_init": float(res.figures["fraction_in_desired_sink_init"]),
         "fraction_in_desired_sink_per_sink": per_sink,
+        "arrival_frames_median": float(res.figures["arrival_frames_median"]),
+        "arrival_frames_max": float(res.figures["arrival_frames_max"]),
+        "fraction_arriving_within_render": float(figs["fraction_arriving_within_render"]),
         "iterations": int(res.figures["iterations"]), "objective": float(res.figures["E"]),
         "rendered_flow_epe_px": float(figs["rendered_flow_epe_px"]),
         "edited_speed_mean_px": float(figs["edited_speed_mean_px"]),
@@ -313,8 +319,8 @@ def run(cfg: DictConfig) -> None:
         write_gif(tmp / "edit.gif", pairs, float(ec.video_fps) / max(1, n_frames // max(len(g), 1)))
         contact_sheet(outf, tmp / "contact_sheet.png")
         _arrow_figure(tmp / "arrows.png", spec, src.mean(0).astype(np.uint8), video_mean, r["edited_field_px"], res,
-                      step * 2, f"{out.name}: {100 * summary['fraction_in_desired_sink']:.1f} % of {summary['particles']} "
-                      "particles in their desired sink")
+                      step * 2, f"{out.name}: streamlines of {100 * summary['fraction_in_desired_sink']:.1f} % of "
+                      f"{summary['particles']} source particles end in their desired sink")
         write_npz(tmp / "field.npz", field_nodes=res.field, field_px=r["edited_field_px"].astype(np.float32),
                   video_mean_px=video_mean.astype(np.float32), exits=res.exits, codes=res.codes, desired=res.desired)
         # strict JSON: a figure that cannot be measured (flicker without a static region: NaN) is null there

@@ -90,6 +90,9 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
                                 match_flow=flow[:, :H, :W].mean(0), on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig}
+    # streamlines end in their sink (the optimiser's figure); how many particles would get there
+    # within the rendered clip, moving at the field's speed (frames = nodes / (nodes/frame))
+    figs["fraction_arriving_within_render"] = float(np.mean((res.codes == res.desired) & (res.arrival_frames <= n)))
     src = src_frames[:, :H, :W]
     out_flow = estimate_flow(out)
     border = spec.render.patch

@@ -53,9 +53,15 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
                                  s["mean_speed_px"], "", None))
         elif "fraction_in_desired_sink" in s:  # an edit
             item = f"edit/{s['edit']}"
-            rows.append(_row(item, "fraction of particles in desired sink", s["fraction_in_desired_sink"], ">= 0.98",
-                             s["fraction_in_desired_sink"] >= 0.98))
-            rows.append(_row(item, "fraction in desired sink at initialisation", s["fraction_in_desired_sink_init"], "", None))
+            rows.append(_row(item, "fraction of source particles whose streamline ends in the desired sink",
+                             s["fraction_in_desired_sink"], ">= 0.98", s["fraction_in_desired_sink"] >= 0.98))
+            rows.append(_row(item, "the same at initialisation, before optimising", s["fraction_in_desired_sink_init"], "",
+                             None))
+            if "arrival_frames_median" in s:
+                rows.append(_row(item, "median frames for a particle to reach its sink along the field",
+                                 s["arrival_frames_median"], "", None))
+                rows.append(_row(item, f"fraction of particles reaching their sink within the {s['frames']} rendered frames",
+                                 s["fraction_arriving_within_render"], "", None))
             epe = s["rendered_flow_epe_px"]
             if "rendered_flow_epe_rel" in s:
                 # relative to what a frozen render scores (the field's mean speed on the same pixels)

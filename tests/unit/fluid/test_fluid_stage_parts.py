@@ -107,7 +107,7 @@ def test_metrics_table_flags_missed_targets():
             "flicker_output": 1.0, "flicker_source": 2.0, "render_s_per_frame": 0.1, "optimise_s": 1.0}
     mb = {"method": "dis_fine", "epe_px": {"RubberWhale": {"dis_fine": 0.3, "dis_medium": 0.2}}}
     rows = {(r["item"], r["quantity"].split(" (")[0]): r["met"] for r in metrics_rows([edit, mb])}
-    assert rows[("edit/e", "fraction of particles in desired sink")] == "NO"
+    assert rows[("edit/e", "fraction of source particles whose streamline ends in the desired sink")] == "NO"
     assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"  # 0.6 px/frame > 0.5 x 1.0
     assert rows[("edit/e", "rendered-flow EPE / edited field's mean speed on the same pixels")] == "NO"
     ok = {r["quantity"].split(" (")[0]: r["met"] for r in metrics_rows([{**edit, "rendered_flow_epe_rel": 0.4}])}
@@ -119,6 +119,11 @@ def test_metrics_table_flags_missed_targets():
     assert rows[("edit/e", "patch-distance ratio")] == "yes"
     assert rows[("edit/e", "flicker in static regions, output")] == "yes"
     assert rows[("middlebury/RubberWhale", "epe_px")] == "NO"
+    timed = {**edit, "frames": 120, "arrival_frames_median": 400.0, "arrival_frames_max": 700.0,
+             "fraction_arriving_within_render": 0.0}
+    r = {x["quantity"]: x for x in metrics_rows([timed])}
+    assert r["median frames for a particle to reach its sink along the field"]["value"] == 400.0
+    assert r["fraction of particles reaching their sink within the 120 rendered frames"]["value"] == 0.0
     assert rows_to_csv(metrics_rows([mb])).startswith("item,quantity,value,target,met\n")
     # no static region in the output: flicker not measurable (no verdict), said so in the target
     flame = {**edit, "edit": "f", "flicker_output": float("nan"), "detail_ratio": 0.9, "flicker_mc_output": 1.1,
