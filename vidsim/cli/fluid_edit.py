@@ -25,7 +25,9 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import sys
 import time
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -39,7 +41,7 @@ from vidsim.errors import ConfigError, FootageError
 from vidsim.fluid.edit import EditSpec
 from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.pipeline import run_edit, video_fields
+from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit, undeclared_obstacles, video_fields
 from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
 from vidsim.io.footage import load_yaml, read_footage
@@ -218,6 +220,12 @@ def run(cfg: DictConfig) -> None:
     else:
         flow = estimate_flow(frames, temporal_sigma=float(cfg.fluid.flow.temporal_sigma))
     video_fields(flow[:1], spec)  # the grid must fit the footage (clear error before optimising)
+    undeclared = undeclared_obstacles(frames, flow, spec)
+    for u in undeclared:  # before the long part, one line each
+        print(f"fluid_edit: WARNING: {ec.spec}: the footage has a dark, still region around node "
+              f"({u['center'][0]}, {u['center'][1]}) ({u['nodes']} nodes, radius ~{u['radius']}) with moving fluid "
+              "around it that no obstacle covers; if it is a solid, declare it under 'obstacles' or the edit flows "
+              "through it", file=sys.stderr, flush=True)
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
     key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
@@ -239,8 +247,10 @@ def run(cfg: DictConfig) -> None:
         bars["ren"].update()
 
     t0 = time.perf_counter()
-    r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
-                 resume=resume, on_iter=on_iter, on_frame=on_frame)
+    with warnings.catch_warnings():  # said above, in one line each
+        warnings.simplefilter("ignore", UndeclaredObstacleWarning)
+        r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
+                     resume=resume, on_iter=on_iter, on_frame=on_frame)
     total = time.perf_counter() - t0
     res, figs, outf = r["edit"], r["figures"], r["frames"]
     print(f"fluid_edit: optimisation stopped after {res.figures['iterations']} iterations "
@@ -268,6 +278,7 @@ def run(cfg: DictConfig) -> None:
         "arrival_frames_median": float(res.figures["arrival_frames_median"]),
         "arrival_frames_max": float(res.figures["arrival_frames_max"]),
         "fraction_arriving_within_render": float(figs["fraction_arriving_within_render"]),
+        "undeclared_obstacles": undeclared,
         "iterations": int(res.figures["iterations"]), "objective": float(res.figures["E"]),
         "rendered_flow_epe_px": float(figs["rendered_flow_epe_px"]),
         "edited_speed_mean_px": float(figs["edited_speed_mean_px"]),
@@ -326,7 +337,8 @@ def run(cfg: DictConfig) -> None:
         # strict JSON: a figure that cannot be measured (flicker without a static region: NaN) is null there
         write_json(tmp / "summary.json", {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
                                           for k, v in summary.items()})
-        flat = {k: v for k, v in summary.items() if not isinstance(v, dict)}
+        flat = {k: v for k, v in summary.items() if not isinstance(v, (dict, list))}
+        flat["undeclared_obstacles"] = len(undeclared)
         flat.update({f"fraction_in_sink_{k}": v for k, v in per_sink.items()})
         write_text(tmp / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in flat.items()))
     replace_dir(tmp, out)

@@ -141,3 +141,54 @@ def test_metrics_table_flags_missed_targets():
     assert r["motion-compensated flicker, whole frame, output"]["value"] == 1.1
     with pytest.raises(ValueError, match="not a fluid_flow"):
         metrics_rows([{"something": 1}])
+
+
+def _footage_with_a_still_dark_disc(disc: bool = True, dark_band: bool = False):
+    """64x96 grey texture moving right 1 px/frame (8 frames) past a still dark disc with a faint
+    still texture (radius 13 px,
+    centre pixel (48.5, 30.5) = node (24, 15) at 2 px per node), optionally a still dark band
+    along the top edge (a background, not a solid)."""
+    import cv2
+
+    from vidsim.fluid.flow import estimate_flow
+
+    rng = np.random.default_rng(0)
+    H, W = 64, 96
+    tex = cv2.GaussianBlur(rng.uniform(0, 255, (H, W)).astype(np.float32), (0, 0), 1.2)
+    tex = (tex - tex.mean()) / tex.std() * 30 + 110
+    yy, xx = np.mgrid[0:H, 0:W]
+    d = (xx - 48.5) ** 2 + (yy - 30.5) ** 2 <= 13**2
+    solid = 6.0 + 0.05 * cv2.GaussianBlur(rng.uniform(0, 255, (H, W)).astype(np.float32), (0, 0), 1.2)  # faint, still
+    fr = []
+    for t in range(8):
+        f = np.roll(tex, t, axis=1)
+        if disc:
+            f[d] = solid[d]
+        if dark_band:
+            f[:10] = solid[:10]
+        fr.append(np.clip(f + rng.normal(0, 1, f.shape), 0, 255))
+    frames = np.repeat(np.stack(fr).astype(np.uint8)[..., None], 3, -1)
+    return frames, estimate_flow(frames)
+
+
+def test_undeclared_still_dark_region_is_reported_until_declared():
+    from vidsim.fluid.pipeline import undeclared_obstacles
+
+    spec = {"grid": {"height": 32, "width": 48}, "downsample": 2,
+            "sources": [{"box": [0, 12, 1, 31], "distribution": "out"}], "sinks": [{"name": "out", "box": [47, 12, 48, 31]}]}
+    frames, flow = _footage_with_a_still_dark_disc()
+    found = undeclared_obstacles(frames, flow, EditSpec.from_dict(spec))
+    print(found)
+    assert len(found) == 1 and np.hypot(found[0]["center"][0] - 24, found[0]["center"][1] - 15) < 3
+    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(declared)) == []
+    # the edit warns and lists it in its figures
+    from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit
+
+    quick = {**spec, "optimizer": {"iterations": 2}, "render": {"frames": 2, "patch": 8, "overlap": 2}}
+    with pytest.warns(UndeclaredObstacleWarning, match=r"around node \(24.0, 15.0\)"):
+        r = run_edit(frames, EditSpec.from_dict(quick), np.random.default_rng(0), flow=flow)
+    assert r["figures"]["undeclared_obstacles"] == found
+    # no disc, only a still dark band along the frame's edge (a background): nothing to declare
+    frames, flow = _footage_with_a_still_dark_disc(disc=False, dark_band=True)
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(spec)) == []
