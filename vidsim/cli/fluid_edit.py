@@ -298,9 +298,8 @@ def run(cfg: DictConfig) -> None:
         "total_s": total, "resumed_from_iteration": int(resume["it"]) if resume is not None else 0,
     }
     print("fluid_edit: " + ", ".join(f"{k} {summary[k]:.3f}" for k in (
-        "fraction_in_desired_sink", "rendered_flow_epe_px", "rendered_flow_epe_rel", "patch_distance_ratio", "detail_ratio",
-        "flicker_output",
-        "flicker_source")), flush=True)
+        "fraction_in_desired_sink", "rendered_flow_epe_px", "rendered_flow_epe_rel", "patch_distance_ratio",
+        "detail_ratio", "flicker_output", "flicker_source")), flush=True)
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     src = frames[:, :H, :W]

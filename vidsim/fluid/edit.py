@@ -205,8 +205,8 @@ class EditSpec:
 
         Raises:
             EditSpecError: unknown or missing keys, boxes outside the grid, overlapping sinks,
-                fractions that do not sum to 1, a distribution naming an unknown sink, or a source from which its
-                sinks cannot be reached around the obstacles.
+                fractions that do not sum to 1, a distribution naming an unknown sink, or a
+                source from which its sinks cannot be reached around the obstacles.
         """
         _keys(d, "edit", {"grid", "sources", "sinks", "obstacles", "constraints", "forces", "weights",
                           "optimizer", "footage", "downsample", "description", "render"}, {"grid", "sources", "sinks"})

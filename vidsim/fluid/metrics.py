@@ -191,8 +191,8 @@ def detail_contrast(frames: np.ndarray) -> float:
     """Fine-detail contrast (grey levels): the standard deviation of each frame's grey level
     minus its Gaussian blur (sigma 2 px), averaged over frames. The output's over the source's
     shows wash-out (< 1), which the patch-distance ratio does not see when the blur keeps the
-    layout: a blurred patch is close to the source's smooth patches, and a blurred source patch
-    to the sharp ones nearby. Target: output/source >= :data:`DETAIL_RATIO_MIN`."""
+    layout: a blurred output patch is close to the source's smooth patches, and a sharp source
+    patch to blurred output patches elsewhere. Target: output/source >= :data:`DETAIL_RATIO_MIN`."""
     import cv2
 
     g = frames.astype(np.float32).mean(-1)
