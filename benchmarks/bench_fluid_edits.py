@@ -62,9 +62,10 @@ def main() -> None:
         print(f.stem, json.dumps(figs, default=float))
         fo, fs = figs["flicker_output"], figs["flicker_source"]
         print(f"{f.stem}: in desired sink {figs['edit']['fraction_in_desired_sink']:.3f} (>= 0.98); rendered-flow EPE "
-              f"{figs['rendered_flow_epe_px']:.3f} px/frame (<= 1 on synthetic scenes; field speed "
-              f"{figs['edited_speed_mean_px']:.3f}); patch ratio {figs['patch_distance']['ratio']:.3f} (<= 1.5); detail "
-              f"ratio {figs['detail_ratio']:.3f}; static flicker {fo:.3f} (<= source {fs:.3f}; nan = no static region "
+              f"{figs['rendered_flow_epe_px']:.3f} px/frame = {figs['rendered_flow_epe_rel']:.3f} x the field's mean speed "
+              f"there (<= 0.5; speed {figs['edited_speed_epe_mask_px']:.3f}); patch ratio {figs['patch_distance']['ratio']:.3f} (<= 1.5; coherence "
+              f"{figs['patch_distance']['coherence_ratio']:.3f}, completeness {figs['patch_distance']['completeness_ratio']:.3f}); "
+              f"detail ratio {figs['detail_ratio']:.3f} (>= 0.8); static flicker {fo:.3f} (<= source {fs:.3f}; nan = no static region "
               f"of >= 100 px); compensated flicker {figs['flicker_mc_output']:.3f} (source {figs['flicker_mc_source']:.3f}); "
               f"render {figs['render']['time_per_frame_s']:.3f} s/frame; total {figs['total_s']:.1f} s wall, "
               f"{figs['total_cpu_s']:.1f} s CPU", flush=True)

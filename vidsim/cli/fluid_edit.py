@@ -25,7 +25,9 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import sys
 import time
+import warnings
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -39,7 +41,7 @@ from vidsim.errors import ConfigError, FootageError
 from vidsim.fluid.edit import EditSpec
 from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.pipeline import run_edit, video_fields
+from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit, undeclared_obstacles, video_fields
 from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
 from vidsim.io.footage import load_yaml, read_footage
@@ -147,6 +149,32 @@ def _spec_key(raw: dict, n_frames: int, iterations: int, footage: Path, flow: np
     return h.hexdigest()[:16]
 
 
+CHECKPOINT_ARRAYS = ("key", "v", "step", "it", "hist")
+
+
+def _read_checkpoint(ckpt: Path, key: str) -> dict[str, np.ndarray] | None:
+    """The optimiser state of ``ckpt`` if it belongs to ``key`` (None if absent or of other
+    settings); a file that is not a readable checkpoint is a one-line :class:`ConfigError`
+    naming it (it is not deleted: it may be somebody's file)."""
+    if not ckpt.is_file():
+        return None
+    try:
+        with np.load(ckpt, allow_pickle=False) as z:
+            missing = [k for k in CHECKPOINT_ARRAYS if k not in z.files]
+            if missing:
+                raise ConfigError(f"{ckpt}: not a fluid_edit checkpoint (no array(s) {missing}; arrays: {z.files}); "
+                                  "delete it to start the optimisation afresh")
+            if str(z["key"]) != key:
+                print(f"fluid_edit: ignoring checkpoint {ckpt} of a different edit/settings", flush=True)
+                return None
+            resume = {k: z[k] for k in CHECKPOINT_ARRAYS[1:]}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
+        raise ConfigError(f"{ckpt}: unreadable fluid_edit checkpoint ({type(e).__name__}: {e}); "
+                          "delete it to start the optimisation afresh") from None
+    print(f"fluid_edit: resuming the optimisation at iteration {int(resume['it'])} from {ckpt}", flush=True)
+    return resume
+
+
 def run(cfg: DictConfig) -> None:
     ec = cfg.fluid.edit
     spec, raw = load_edit(ec.spec)
@@ -192,17 +220,16 @@ def run(cfg: DictConfig) -> None:
     else:
         flow = estimate_flow(frames, temporal_sigma=float(cfg.fluid.flow.temporal_sigma))
     video_fields(flow[:1], spec)  # the grid must fit the footage (clear error before optimising)
+    undeclared = undeclared_obstacles(frames, flow, spec)
+    for u in undeclared:  # before the long part, one line each
+        print(f"fluid_edit: WARNING: {ec.spec}: the footage has a dark, still region around node "
+              f"({u['center'][0]}, {u['center'][1]}) ({u['nodes']} nodes, radius ~{u['radius']}) with moving fluid "
+              "around it that no obstacle covers; if it is a solid, declare it under 'obstacles' or the edit flows "
+              "through it", file=sys.stderr, flush=True)
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
     key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
-    resume = None
-    if ckpt.is_file():
-        with np.load(ckpt) as z:
-            if str(z["key"]) == key:
-                resume = {k: z[k] for k in ("v", "step", "it", "hist")}
-                print(f"fluid_edit: resuming the optimisation at iteration {int(resume['it'])} from {ckpt}", flush=True)
-            else:
-                print(f"fluid_edit: ignoring checkpoint {ckpt} of a different edit/settings", flush=True)
+    resume = _read_checkpoint(ckpt, key)
     iters = spec.optimizer.iterations
     bars: dict[str, Progress] = {}  # made at the first step, so their clocks start there
 
@@ -220,13 +247,18 @@ def run(cfg: DictConfig) -> None:
         bars["ren"].update()
 
     t0 = time.perf_counter()
-    r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
-                 resume=resume, on_iter=on_iter, on_frame=on_frame)
+    with warnings.catch_warnings():  # said above, in one line each
+        warnings.simplefilter("ignore", UndeclaredObstacleWarning)
+        r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
+                     resume=resume, on_iter=on_iter, on_frame=on_frame)
     total = time.perf_counter() - t0
     res, figs, outf = r["edit"], r["figures"], r["frames"]
     print(f"fluid_edit: optimisation stopped after {res.figures['iterations']} iterations "
-          f"({res.figures['time_s']:.1f} s); {100 * res.figures['fraction_in_desired_sink']:.1f} % of "
-          f"{len(res.desired)} particles in their desired sink", flush=True)
+          f"({res.figures['time_s']:.1f} s); the streamlines of {100 * res.figures['fraction_in_desired_sink']:.1f} % "
+          f"of {len(res.desired)} source particles end in their desired sink "
+          f"({100 * res.figures['fraction_in_desired_sink_init']:.1f} % at initialisation; median "
+          f"{res.figures['arrival_frames_median']:.0f} frames to get there, "
+          f"{100 * figs['fraction_arriving_within_render']:.1f} % within the {n_frames} rendered frames)", flush=True)
     if not res.ok:
         raise ConfigError(f"{ec.spec}: the optimisation became non-finite (objective NaN/inf); check weights and step")
     names = [s.name for s in spec.sinks]
@@ -243,13 +275,22 @@ def run(cfg: DictConfig) -> None:
         "fraction_in_desired_sink": float(res.figures["fraction_in_desired_sink"]),
         "fraction_in_desired_sink_init": float(res.figures["fraction_in_desired_sink_init"]),
         "fraction_in_desired_sink_per_sink": per_sink,
+        "arrival_frames_median": float(res.figures["arrival_frames_median"]),
+        "arrival_frames_max": float(res.figures["arrival_frames_max"]),
+        "fraction_arriving_within_render": float(figs["fraction_arriving_within_render"]),
+        "undeclared_obstacles": undeclared,
         "iterations": int(res.figures["iterations"]), "objective": float(res.figures["E"]),
         "rendered_flow_epe_px": float(figs["rendered_flow_epe_px"]),
         "edited_speed_mean_px": float(figs["edited_speed_mean_px"]),
+        "rendered_flow_epe_rel": float(figs["rendered_flow_epe_rel"]),
+        "edited_speed_epe_mask_px": float(figs["edited_speed_epe_mask_px"]),
         "patch_distance_ratio": float(figs["patch_distance"]["ratio"]),
+        "patch_coherence_ratio": float(figs["patch_distance"]["coherence_ratio"]),
+        "patch_completeness_ratio": float(figs["patch_distance"]["completeness_ratio"]),
         "detail_ratio": float(figs["detail_ratio"]),
         "flicker_output": float(figs["flicker_output"]), "flicker_source": float(figs["flicker_source"]),
         "flicker_mc_output": float(figs["flicker_mc_output"]), "flicker_mc_source": float(figs["flicker_mc_source"]),
+        "static_fraction": float(figs["static_fraction"]),
         "static_fraction_output": float(figs["static_fraction_output"]),
         "static_fraction_source": float(figs["static_fraction_source"]),
         "frames": int(n_frames), "width": int(W), "height": int(H),
@@ -257,7 +298,8 @@ def run(cfg: DictConfig) -> None:
         "total_s": total, "resumed_from_iteration": int(resume["it"]) if resume is not None else 0,
     }
     print("fluid_edit: " + ", ".join(f"{k} {summary[k]:.3f}" for k in (
-        "fraction_in_desired_sink", "rendered_flow_epe_px", "patch_distance_ratio", "flicker_output", "flicker_source")), flush=True)
+        "fraction_in_desired_sink", "rendered_flow_epe_px", "rendered_flow_epe_rel", "patch_distance_ratio",
+        "detail_ratio", "flicker_output", "flicker_source")), flush=True)
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     src = frames[:, :H, :W]
@@ -287,14 +329,15 @@ def run(cfg: DictConfig) -> None:
         write_gif(tmp / "edit.gif", pairs, float(ec.video_fps) / max(1, n_frames // max(len(g), 1)))
         contact_sheet(outf, tmp / "contact_sheet.png")
         _arrow_figure(tmp / "arrows.png", spec, src.mean(0).astype(np.uint8), video_mean, r["edited_field_px"], res,
-                      step * 2, f"{out.name}: {100 * summary['fraction_in_desired_sink']:.1f} % of {summary['particles']} "
-                      "particles in their desired sink")
+                      step * 2, f"{out.name}: streamlines of {100 * summary['fraction_in_desired_sink']:.1f} % of "
+                      f"{summary['particles']} source particles end in their desired sink")
         write_npz(tmp / "field.npz", field_nodes=res.field, field_px=r["edited_field_px"].astype(np.float32),
                   video_mean_px=video_mean.astype(np.float32), exits=res.exits, codes=res.codes, desired=res.desired)
         # strict JSON: a figure that cannot be measured (flicker without a static region: NaN) is null there
         write_json(tmp / "summary.json", {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
                                           for k, v in summary.items()})
-        flat = {k: v for k, v in summary.items() if not isinstance(v, dict)}
+        flat = {k: v for k, v in summary.items() if not isinstance(v, (dict, list))}
+        flat["undeclared_obstacles"] = len(undeclared)
         flat.update({f"fraction_in_sink_{k}": v for k, v in per_sink.items()})
         write_text(tmp / "summary.csv", "quantity,value\n" + "".join(f"{k},{v}\n" for k, v in flat.items()))
     replace_dir(tmp, out)

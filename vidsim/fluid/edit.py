@@ -204,9 +204,9 @@ class EditSpec:
         """Validate a YAML-style dict (see ``docs/fluid_editing.md``).
 
         Raises:
-            EditSpecError: unknown or missing keys, boxes outside the grid, fractions that do
-                not sum to 1, a distribution naming an unknown sink, or a source from which its
-                sinks cannot be reached around the obstacles.
+            EditSpecError: unknown or missing keys, boxes outside the grid, overlapping sinks,
+                fractions that do not sum to 1, a distribution naming an unknown sink, or a
+                source from which its sinks cannot be reached around the obstacles.
         """
         _keys(d, "edit", {"grid", "sources", "sinks", "obstacles", "constraints", "forces", "weights",
                           "optimizer", "footage", "downsample", "description", "render"}, {"grid", "sources", "sinks"})
@@ -224,6 +224,17 @@ class EditSpec:
         names = [s.name for s in sinks]
         if len(set(names)) != len(names):
             raise EditSpecError(f"sinks: duplicate names in {names}")
+        # a node in two sinks would belong to the later one only (rasterize overwrites sink_id),
+        # so a particle could never end in the earlier sink there: refuse the overlap by name
+        for i, a in enumerate(sinks):
+            for j in range(i + 1, len(sinks)):
+                b = sinks[j]
+                ox0, oy0 = max(a.box[0], b.box[0]), max(a.box[1], b.box[1])
+                ox1, oy1 = min(a.box[2], b.box[2]), min(a.box[3], b.box[3])
+                if ox0 < ox1 and oy0 < oy1:
+                    raise EditSpecError(
+                        f"sinks[{i}] ({a.name!r}, box {list(a.box)}) and sinks[{j}] ({b.name!r}, box {list(b.box)}) "
+                        f"overlap in [{ox0}, {oy0}, {ox1}, {oy1}]: sinks must be disjoint")
         sources = []
         if not isinstance(d["sources"], list) or not d["sources"]:
             raise EditSpecError(f"sources: expected a non-empty list, got {d['sources']!r}")

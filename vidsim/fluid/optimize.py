@@ -6,21 +6,26 @@ The field ``v`` is ``(H, W, 2)`` in grid nodes per frame on the edit grid. The o
 * ``Ef`` flow conservation: mean over source particles of the squared distance from the
   particle's exit point to its desired sink (eq. 18, ``c_des . d^2``). Particles are traced
   along the streamlines of the field (arc-length steps, so the exit point depends on the
-  direction field only). Its gradient with respect to every node velocity is computed exactly
-  for the discrete tracer by reverse-mode differentiation through the trace (the adjoint of
-  the finite-difference gradient of eq. 22); a test checks it against central differences.
+  direction field only). Its gradient with respect to every node velocity is computed by
+  reverse-mode differentiation through the discrete trace (the adjoint of the finite-difference
+  gradient of eq. 22). It is exact for particles that end within the step limit (in a sink, on
+  an obstacle or at the frame edge; a test checks it against central differences). For a
+  particle still circulating at the step limit the adjoint is clipped to keep it bounded, so its
+  contribution is a bounded descent direction, not the exact derivative.
 * ``Es`` smoothness: sum over 4-connected pairs of ``|v_i - v_j|^2`` (eq. 23-24), per node.
 * ``En`` neighbourhood: squared distance of every node's 3x3 velocity patch to its nearest
   patch of the video field (eq. 25-29), nearest neighbours by a KD-tree; its gradient holds the
   matches fixed (exact almost everywhere).
 
-The local minimum of the continuous formulation (seed Figure 15) is avoided by a harmonic
-initialisation: per sink, a harmonic potential (Dirichlet 0 on the sink, 1 on the sources, the
-other sinks and the channels claimed by other sinks' particles; Neumann at obstacles and at the
-frame edge) whose
-discrete steepest-descent paths from every source node reach the desired sink (a harmonic
-function has no interior minimum), and a velocity field that follows the potential of the
-sink whose channel is nearest.
+The local minimum of the continuous formulation (seed Figure 15) is avoided by the
+initialisation of :func:`harmonic_init`: per sink, in order, shortest paths (Dijkstra, 8-connected)
+from its source nodes claim channels that are walls for the sinks after it; per sink, a
+flux-driven potential (the graph Poisson equation with unit injection at the sink's own source
+nodes, Dirichlet 0 on the sink, Neumann at walls: obstacles, the frame edge, other sinks, other
+sinks' sources and their channels) has its only minimum on the sink, so steepest descent from any
+node connected to it ends there; the field in the region nearest each channel follows the sum of
+the directions of that potential and of the geodesic distance to the sink, and on and beside the
+channels the channel's own direction.
 """
 
 from __future__ import annotations
@@ -164,6 +169,41 @@ def trace_particles(v, particles, desired, sink_boxes, sink_id, solid, step, max
             lx = nlx
             ly = nly
     return exits, codes, errs, grad
+
+
+@njit(cache=True)
+def travel_frames(v, particles, desired, sink_id, solid, step, max_steps):
+    """Frames each particle takes along its traced path (the path of :func:`trace_particles`,
+    same steps): the sum over steps of ``step / s``, ``s`` the regularised speed the tracer
+    divides by (nodes/frame), i.e. the time to cover each step's displacement at the local
+    speed. ``(M,)``; 0 for a particle that starts in its desired sink, ``inf`` for one that
+    does not end within ``max_steps``."""
+    m = particles.shape[0]
+    out = np.empty(m)
+    for p in range(m):
+        x = particles[p, 0]
+        y = particles[p, 1]
+        start = _terminal(x, y, sink_id, solid)
+        escaping = start >= -1 and start != desired[p]
+        code = start if start == desired[p] else -3
+        t = 0.0
+        n = 0
+        while code == -3 or escaping:
+            if n >= max_steps:
+                break
+            val, _, _, _, _, _, _ = _bilinear(v, x, y)
+            s = np.sqrt(val[0] ** 2 + val[1] ** 2 + _EPS**2)
+            x = x + step * val[0] / s
+            y = y + step * val[1] / s
+            t += step / s
+            n += 1
+            code = _terminal(x, y, sink_id, solid)
+            if escaping:
+                if code == start:
+                    continue
+                escaping = False
+        out[p] = t if code != -3 else np.inf
+    return out
 
 
 def smoothness(v: np.ndarray) -> tuple[float, np.ndarray]:
@@ -421,7 +461,11 @@ class EditResult:
         history: objective value per accepted iteration.
         ok: False when the objective became non-finite (the field is then the last good one).
         figures: ``fraction_in_desired_sink`` (after), ``fraction_in_desired_sink_init``,
-            ``E``, ``Ef``, ``Es``, ``En``, ``iterations``, ``time_s``.
+            ``E``, ``Ef``, ``Es``, ``En``, ``iterations``, ``time_s``, and the time particles
+            take to reach their desired sink along the field, ``arrival_frames_median`` /
+            ``arrival_frames_max`` (frames, over the particles that reach it; NaN if none).
+        arrival_frames: ``(M,)`` frames each particle takes to reach the end of its trace
+            (:func:`travel_frames`; ``inf``: no end within the step limit).
     """
 
     field: np.ndarray
@@ -432,6 +476,7 @@ class EditResult:
     history: list[float]
     ok: bool
     figures: dict[str, float] = field(default_factory=dict)
+    arrival_frames: np.ndarray | None = None
 
 
 class Objective:
@@ -528,11 +573,15 @@ def optimize_field(prob: EditProblem, init: np.ndarray, index: PatchIndex | None
         if on_iter is not None:
             on_iter(it, {"v": v, "step": step, "it": it, "hist": np.array(hist)})
     exits, codes, _, _ = obj.trace(v)
+    arrival = travel_frames(v, prob.particles, prob.desired, prob.sink_id, prob.solid, obj.step, obj.max_steps)
+    arrived = arrival[codes == prob.desired]
     figs = {"fraction_in_desired_sink": fraction_in_desired_sink(codes, prob.desired),
             "fraction_in_desired_sink_init": fraction_in_desired_sink(codes0, prob.desired),
             "E": e, **parts, "iterations": it, "time_s": time.perf_counter() - t0,
-            "n_particles": len(prob.particles)}
-    return EditResult(v, v0, exits, codes, prob.desired.copy(), hist, ok, figs)
+            "n_particles": len(prob.particles),
+            "arrival_frames_median": float(np.median(arrived)) if len(arrived) else float("nan"),
+            "arrival_frames_max": float(arrived.max()) if len(arrived) else float("nan")}
+    return EditResult(v, v0, exits, codes, prob.desired.copy(), hist, ok, figs, arrival)
 
 
 def edit_field(video_field: np.ndarray, spec: EditSpec, video_fields: np.ndarray | None = None,

@@ -45,8 +45,20 @@ def test_errors_name_the_key():
     _bad(lambda d: d.update(render={"mode": "paint"}), r"render\.mode='paint'")
     _bad(lambda d: d.update(render={"blend": "soft"}), r"render\.blend='soft', expected one of \['linear', 'variance'\]")
     _bad(lambda d: d.update(render={"velocity_noise": -0.1}), r"render\.velocity_noise=-0.1")
+    # overlapping sinks (a inside b): both named, the overlap given
+    _bad(lambda d: d["sinks"][1].update(box=[0, 26, 32, 32]),
+         r"sinks\[0\] \('a', box \[0, 28, 10, 31\]\) and sinks\[1\] \('b', box \[0, 26, 32, 32\]\) overlap in "
+         r"\[0, 28, 10, 31\]")
+    _bad(lambda d: d["sinks"][1].update(box=[9, 30, 20, 32]), r"overlap in \[9, 30, 10, 31\]")  # corners overlap
     # a wall across the grid: sink b cannot be reached from the source
     _bad(lambda d: d.update(obstacles=[{"box": [0, 15, 32, 17]}]), "sink 'a' cannot be reached")
+
+
+def test_touching_sinks_are_accepted():
+    d = copy.deepcopy(BASE)
+    d["sinks"][1]["box"] = [10, 28, 32, 31]  # shares the edge x = 10 with sink a, no node in both
+    prob = EditSpec.from_dict(d).rasterize()
+    assert (prob.sink_id[28:31, :10] == 0).all() and (prob.sink_id[28:31, 10:] == 1).all()
 
 
 def test_doc_examples_validate():

@@ -152,3 +152,39 @@ def test_a_particle_starting_inside_another_sink_leaves_it_first():
     v[..., 0] = -1.0
     _, codes, errs, _ = trace_particles(v, parts[:1], np.array([0], np.int64), boxes, sink_id, solid, 0.5, 200, False)
     assert codes[0] == -2 and errs[0] > 0  # it leaves the frame on the left, far from sink 0
+
+
+def test_travel_frames_is_distance_over_speed():
+    """The time a particle takes to reach its sink along the field (frames): in a uniform
+    field of 0.5 nodes/frame, from y = 2.25 the tracer needs 51 half-node steps (25.5 nodes) to
+    enter the sink (y >= 27.5): 51 frames; at 0.25 nodes/frame twice as long; a particle
+    starting in its sink takes 0, one in a field that never reaches a sink inf."""
+    from vidsim.fluid.optimize import travel_frames
+
+    h, w = 32, 8
+    sink_id = -np.ones((h, w), np.int64)
+    sink_id[28:, :] = 0
+    solid = np.zeros((h, w), bool)
+    parts = np.array([[3.0, 2.25], [3.0, 29.0]])
+    des = np.array([0, 0], np.int64)
+    v = np.zeros((h, w, 2))
+    for speed in (0.5, 0.25):
+        v[..., 1] = speed
+        t = travel_frames(v, parts, des, sink_id, solid, 0.5, 1000)
+        assert t[0] == pytest.approx(25.5 / speed, rel=1e-5) and t[1] == 0.0
+    v[..., 1] = 0.0
+    # no motion at all: the tracer never ends
+    assert np.isinf(travel_frames(v, parts[:1], des[:1], sink_id, solid, 0.5, 100)[0])
+
+
+def test_edit_reports_arrival_times():
+    spec = EditSpec.from_dict(_with(FIG15, optimizer={"iterations": 5}))
+    vf = np.zeros((H, W, 2))
+    vf[..., 1] = 0.5
+    res = edit_field(vf, spec)
+    ok = res.codes == res.desired
+    assert ok.any() and np.isfinite(res.arrival_frames[ok]).all()
+    assert res.figures["arrival_frames_median"] == pytest.approx(np.median(res.arrival_frames[ok]))
+    # at least the straight-line distance to the sink row over the fastest speed in the field
+    vmax = np.linalg.norm(res.field, axis=-1).max()
+    assert res.figures["arrival_frames_median"] >= (56 - 0.5 - 4) / vmax

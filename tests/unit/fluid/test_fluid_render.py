@@ -9,7 +9,8 @@ import pytest
 
 from vidsim.fluid.edit import EditSpec, RenderSettings
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.metrics import compensated_flicker, flicker, patch_distance_ratio, rendered_flow_epe, static_mask
+from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio, relative_epe,
+                                  rendered_flow_epe, static_flicker, static_mask)
 from vidsim.fluid.pipeline import run_edit
 from vidsim.fluid.render import RenderInputError, _compose, _consistency, render_sequence
 from vidsim.reality.fluid import make_scene
@@ -29,9 +30,18 @@ def test_advected_render_moves_with_edited_field(stream):
     assert out.shape == (24, 96, 96, 3) and out.dtype == np.uint8
     epe = rendered_flow_epe(out, field, border=12)
     wrong = rendered_flow_epe(out, -field, border=12)  # the same field running backwards
-    print("render:", figs, "EPE", epe, "reversed", wrong)
-    assert epe <= 1.0
+    rel, speed = relative_epe(epe, field, border=12)
+    # renders that do not follow the field must miss the relative target: a frozen output
+    # (frame 0 repeated) and an output rendered with the field reversed
+    frozen = rendered_flow_epe(np.repeat(out[:1], 8, 0), field, border=12)
+    out_rev, _ = render_sequence(frames, flow, -field, 12, np.random.default_rng(0), RenderSettings(), match_flow=field)
+    reversed_render = rendered_flow_epe(out_rev, field, border=12)
+    print("render:", figs, "EPE", epe, "relative", rel, "speed", speed, "frozen", frozen, "reversed render",
+          reversed_render)
+    assert rel <= EPE_REL_MAX
     assert epe < 0.5 * wrong
+    assert relative_epe(frozen, field, border=12)[0] > EPE_REL_MAX
+    assert relative_epe(reversed_render, field, border=12)[0] > EPE_REL_MAX
     ratio = patch_distance_ratio(out, frames)["ratio"]
     assert ratio <= 1.5
 
@@ -50,6 +60,15 @@ def test_static_flicker_not_worse_than_source(scene):
     fo, fs = flicker(out, st), flicker(f.frames[:24], st)
     print(scene, "static flicker output", fo, "source", fs)
     assert fo <= fs
+    # the pipeline's figure: one mask for both, declared obstacles left out (here the left
+    # quarter of the frame declared solid)
+    solid = np.zeros(st.shape, bool)
+    solid[:, :24] = True
+    s = static_flicker(out, f.frames[:24], field, flow, solid)
+    one = static_mask(field) & st & ~solid
+    assert one.sum() >= 100 and s["static_fraction"] == pytest.approx(one.mean())
+    assert s["flicker_output"] == pytest.approx(flicker(out, one))
+    assert s["flicker_source"] == pytest.approx(flicker(f.frames[:24], one))
 
 
 def _two_region_particles(rng: np.random.Generator, T: int = 4, H: int = 64, W: int = 96):
@@ -161,8 +180,15 @@ def test_run_edit_second_boat(stream):
     f = r["figures"]
     print("second boat:", f)
     assert f["edit"]["fraction_in_desired_sink"] >= 0.98
-    assert f["rendered_flow_epe_px"] <= 1.0
+    assert f["rendered_flow_epe_rel"] <= EPE_REL_MAX
+    assert f["rendered_flow_epe_rel"] == pytest.approx(f["rendered_flow_epe_px"] / f["edited_speed_epe_mask_px"])
     assert r["frames"].shape == (16, 96, 96, 3)
+    # static flicker on one mask: here the only static pixels are the boats, declared obstacles,
+    # so it is not measurable (each sequence's own static region held boats: output the two
+    # declared ones, source the footage's boat)
+    assert f["static_fraction_output"] > 0.01 and f["static_fraction_source"] > 0
+    assert f["static_fraction"] < 100 / 96**2
+    assert np.isnan(f["flicker_output"]) and np.isnan(f["flicker_source"])
 
 
 def test_bad_render_input(stream):

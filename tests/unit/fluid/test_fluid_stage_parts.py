@@ -102,15 +102,28 @@ def test_flow_colours_code_direction_and_speed():
 
 def test_metrics_table_flags_missed_targets():
     edit = {"edit": "e", "footage": "fluid_x", "fraction_in_desired_sink": 0.97, "fraction_in_desired_sink_init": 0.5,
-            "rendered_flow_epe_px": 1.2, "edited_speed_mean_px": 1.0, "patch_distance_ratio": 1.4,
+            "rendered_flow_epe_px": 0.6, "edited_speed_mean_px": 1.0, "rendered_flow_epe_rel": 0.6,
+            "edited_speed_epe_mask_px": 1.0, "patch_distance_ratio": 1.4,
             "flicker_output": 1.0, "flicker_source": 2.0, "render_s_per_frame": 0.1, "optimise_s": 1.0}
     mb = {"method": "dis_fine", "epe_px": {"RubberWhale": {"dis_fine": 0.3, "dis_medium": 0.2}}}
     rows = {(r["item"], r["quantity"].split(" (")[0]): r["met"] for r in metrics_rows([edit, mb])}
-    assert rows[("edit/e", "fraction of particles in desired sink")] == "NO"
-    assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"
+    assert rows[("edit/e", "fraction of source particles whose streamline ends in the desired sink")] == "NO"
+    assert rows[("edit/e", "rendered-flow EPE vs edited field px/frame")] == "NO"  # 0.6 px/frame > 0.5 x 1.0
+    assert rows[("edit/e", "rendered-flow EPE / edited field's mean speed on the same pixels")] == "NO"
+    ok = {r["quantity"].split(" (")[0]: r["met"] for r in metrics_rows([{**edit, "rendered_flow_epe_rel": 0.4}])}
+    assert ok["rendered-flow EPE vs edited field px/frame"] == "yes"
+    # a summary from before the relative target: the figure, no verdict
+    old = {k: v for k, v in edit.items() if k not in ("rendered_flow_epe_rel", "edited_speed_epe_mask_px")}
+    assert {r["quantity"].split(" (")[0]: r["met"] for r in metrics_rows([old])}[
+        "rendered-flow EPE vs edited field px/frame"] == ""
     assert rows[("edit/e", "patch-distance ratio")] == "yes"
     assert rows[("edit/e", "flicker in static regions, output")] == "yes"
     assert rows[("middlebury/RubberWhale", "epe_px")] == "NO"
+    timed = {**edit, "frames": 120, "arrival_frames_median": 400.0, "arrival_frames_max": 700.0,
+             "fraction_arriving_within_render": 0.0}
+    r = {x["quantity"]: x for x in metrics_rows([timed])}
+    assert r["median frames for a particle to reach its sink along the field"]["value"] == 400.0
+    assert r["fraction of particles reaching their sink within the 120 rendered frames"]["value"] == 0.0
     assert rows_to_csv(metrics_rows([mb])).startswith("item,quantity,value,target,met\n")
     # no static region in the output: flicker not measurable (no verdict), said so in the target
     flame = {**edit, "edit": "f", "flicker_output": float("nan"), "detail_ratio": 0.9, "flicker_mc_output": 1.1,
@@ -119,6 +132,63 @@ def test_metrics_table_flags_missed_targets():
     assert r["flicker in static regions, output"]["met"] == ""
     assert "not measurable" in r["flicker in static regions, output"]["target"]
     assert r["detail-contrast ratio output/source"]["value"] == 0.9
+    assert r["detail-contrast ratio output/source"]["met"] == "yes"
+    washed = {**flame, "detail_ratio": 0.7, "patch_distance_ratio": 1.6, "patch_coherence_ratio": 0.6,
+              "patch_completeness_ratio": 1.6}
+    r = {x["quantity"].split(" (")[0]: x for x in metrics_rows([washed])}
+    assert r["detail-contrast ratio output/source"]["met"] == "NO"
+    assert r["patch-distance ratio"]["met"] == "NO" and "completeness 1.600" in r["patch-distance ratio"]["quantity"]
     assert r["motion-compensated flicker, whole frame, output"]["value"] == 1.1
     with pytest.raises(ValueError, match="not a fluid_flow"):
         metrics_rows([{"something": 1}])
+
+
+def _footage_with_a_still_dark_disc(disc: bool = True, dark_band: bool = False):
+    """64x96 grey texture moving right 1 px/frame (8 frames) past a still dark disc with a faint
+    still texture (radius 13 px,
+    centre pixel (48.5, 30.5) = node (24, 15) at 2 px per node), optionally a still dark band
+    along the top edge (a background, not a solid)."""
+    import cv2
+
+    from vidsim.fluid.flow import estimate_flow
+
+    rng = np.random.default_rng(0)
+    H, W = 64, 96
+    tex = cv2.GaussianBlur(rng.uniform(0, 255, (H, W)).astype(np.float32), (0, 0), 1.2)
+    tex = (tex - tex.mean()) / tex.std() * 30 + 110
+    yy, xx = np.mgrid[0:H, 0:W]
+    d = (xx - 48.5) ** 2 + (yy - 30.5) ** 2 <= 13**2
+    solid = 6.0 + 0.05 * cv2.GaussianBlur(rng.uniform(0, 255, (H, W)).astype(np.float32), (0, 0), 1.2)  # faint, still
+    fr = []
+    for t in range(8):
+        f = np.roll(tex, t, axis=1)
+        if disc:
+            f[d] = solid[d]
+        if dark_band:
+            f[:10] = solid[:10]
+        fr.append(np.clip(f + rng.normal(0, 1, f.shape), 0, 255))
+    frames = np.repeat(np.stack(fr).astype(np.uint8)[..., None], 3, -1)
+    return frames, estimate_flow(frames)
+
+
+def test_undeclared_still_dark_region_is_reported_until_declared():
+    from vidsim.fluid.pipeline import undeclared_obstacles
+
+    spec = {"grid": {"height": 32, "width": 48}, "downsample": 2,
+            "sources": [{"box": [0, 12, 1, 31], "distribution": "out"}], "sinks": [{"name": "out", "box": [47, 12, 48, 31]}]}
+    frames, flow = _footage_with_a_still_dark_disc()
+    found = undeclared_obstacles(frames, flow, EditSpec.from_dict(spec))
+    print(found)
+    assert len(found) == 1 and np.hypot(found[0]["center"][0] - 24, found[0]["center"][1] - 15) < 3
+    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(declared)) == []
+    # the edit warns and lists it in its figures
+    from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit
+
+    quick = {**spec, "optimizer": {"iterations": 2}, "render": {"frames": 2, "patch": 8, "overlap": 2}}
+    with pytest.warns(UndeclaredObstacleWarning, match=r"around node \(24.0, 15.0\)"):
+        r = run_edit(frames, EditSpec.from_dict(quick), np.random.default_rng(0), flow=flow)
+    assert r["figures"]["undeclared_obstacles"] == found
+    # no disc, only a still dark band along the frame's edge (a background): nothing to declare
+    frames, flow = _footage_with_a_still_dark_disc(disc=False, dark_band=True)
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(spec)) == []
