@@ -104,24 +104,39 @@ def _planned_jobs(out: str) -> set[str]:
 
 @pytest.mark.slow
 def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_data):
+    # the workflow and its Hydra configs copied, so that a conf/ file can be edited (the stages
+    # themselves compose the package's conf/, unchanged)
+    wf = tmp_path / "wf"
+    wf.mkdir()
+    for f in ("Snakefile", "env.yml"):
+        shutil.copy(REPO_ROOT / f, wf)
+    for d in ("workflow", "conf", "docs/fluid_edits"):  # the fluid rules read their edits at parse time
+        shutil.copytree(REPO_ROOT / d, wf / d)
     res = tmp_path / "results"
     base = (f"results: {res}\nshared_data: {shared_data}\nhydra_overrides: 'log.rerun=false'\n"
             f"stages: {only('calibration_chessboard', 'demo')}\n")
     cfg = tmp_path / "a.yaml"
     cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: ''}\n")
-    r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--cores", "2")
+    r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--cores", "2", cwd=wf)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     # nothing changed: nothing to do
-    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
     assert _planned_jobs(r.stdout + r.stderr) == set(), r.stdout
     # one value of the footage stage changes: it (and `all`) rerun, the calibrations do not
     cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: 'render.noise_sigma=4'}\n")
-    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
     assert _planned_jobs(r.stdout + r.stderr) == {"reality_demo", "all"}, r.stdout
     # the scene calibration changes: the footage made from it reruns too, the chessboard does not
     cfg.write_text(base + "overrides: {calibrate_scene: 'calibrate.n_views=8', reality_demo: ''}\n")
-    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
     assert _planned_jobs(r.stdout + r.stderr) == {"calibrate_scene", "reality_demo", "all"}, r.stdout
+    # a Hydra config file changes: the render group reruns the footage, not the calibrations
+    # (before 5 Dec 2026 editing conf/ reran nothing)
+    cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: ''}\n")
+    with open(wf / "conf" / "render" / "default.yaml", "a") as f:
+        f.write("noise_sigma: 3.0\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
+    assert _planned_jobs(r.stdout + r.stderr) == {"reality_demo", "all"}, r.stdout
 
 
 def test_your_own_recording_runs_as_a_rigid_case_without_reality_or_scoring(tmp_path):

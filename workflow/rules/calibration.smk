@@ -21,6 +21,7 @@ rule calibrate_chessboard:
             category="Calibration",
         ),
     params:
+        conf=CONF_CALIBRATION,
         out=get_out_dir,
         extra=stage_overrides("calibrate_chessboard"),
     log:
@@ -46,6 +47,7 @@ rule calibrate_scene:
         ),
         rrd=f"{RESULTS}/calibration/{{scene}}/calibrate.rrd",
     params:
+        conf=CONF_CALIBRATION,
         out=get_out_dir,
         extra=stage_overrides("calibrate_scene"),
     log:

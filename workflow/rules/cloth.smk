@@ -57,6 +57,7 @@ use rule calibrate_scene as calibrate_cloth_scene with:
         ),
         rrd=f"{RESULTS}/calibration/cloth/calibrate.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         extra=f"{STAGE_BASE} camera=cloth projector=cloth calibrate=cloth {CLOTH_CAL_HYDRA} "
         f"{stage_own('calibrate_scene', 'calibrate_cloth_scene')}".strip(),
@@ -86,6 +87,7 @@ rule reality_cloth:
         ),
         rrd=f"{RESULTS}/footage/cloth_{{fabric}}_{{trial}}.reality.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=stage_own("reality_cloth"),
@@ -121,6 +123,7 @@ rule fit_cloth:
         ),
         rrd=f"{RESULTS}/cloth/fit/{{fabric}}_{{trial}}/cloth.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=stage_own("fit_cloth"),
@@ -154,6 +157,7 @@ rule select_cloth:
             subcategory="selection",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         inputs=cloth_select_inputs,
         base=STAGE_BASE,
@@ -201,6 +205,7 @@ rule validate_cloth:
             subcategory="Table 1",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         inputs=cloth_validate_inputs,
         base=STAGE_BASE,
@@ -235,6 +240,7 @@ rule profile_cloth:
             subcategory="profiles",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         footage=cloth_meta_folders,
         base=STAGE_BASE,
@@ -277,6 +283,7 @@ rule score_cloth_twin:
             subcategory="twin",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=stage_own("score_cloth_twin"),
@@ -317,6 +324,7 @@ rule score_cloth_twin_joint:
             subcategory="twin",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=stage_own("score_cloth_twin", "score_cloth_twin_joint"),
@@ -352,6 +360,7 @@ rule reality_skirt:
         ),
         rrd=f"{RESULTS}/footage/skirt_{{fabric}}.reality.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=stage_own("reality_skirt"),
@@ -394,6 +403,7 @@ rule skirt_cloth:
         ),
         rrd=f"{RESULTS}/cloth/skirt/skirt.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         inputs=cloth_skirt_inputs,
         base=STAGE_BASE,
@@ -421,6 +431,7 @@ use rule fit_cloth as fit_cloth_cmaes with:
         energy=f"{RESULTS}/cloth/fit_cmaes/{{fabric}}_{{trial}}/energy.png",
         rrd=f"{RESULTS}/cloth/fit_cmaes/{{fabric}}_{{trial}}/cloth.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         base=STAGE_BASE,
         extra=f"{stage_own('fit_cloth', 'fit_cloth_cmaes')} cloth.fit.method=cmaes".strip(),
@@ -455,6 +466,7 @@ rule fit_cloth_joint:
         energy=f"{RESULTS}/cloth/fit_joint/{{fabric}}/energy.png",
         rrd=f"{RESULTS}/cloth/fit_joint/{{fabric}}/cloth.rrd",
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         footage=cloth_meta_folders,
         base=STAGE_BASE,
@@ -508,6 +520,7 @@ rule compare_cloth:
             subcategory="methods",
         ),
     params:
+        conf=CONF_CLOTH,
         out=get_out_dir,
         inputs=cloth_compare_inputs,
         base=STAGE_BASE,

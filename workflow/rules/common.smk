@@ -22,6 +22,35 @@ def stage_overrides(*stages):
 
 STAGE_BASE = f"paths.results={RESULTS} {HYDRA_EXTRA}".strip()
 
+# The Hydra configs under conf/ shape every stage's results but are read by the stages at run
+# time, not declared as inputs: each rule carries a digest of the conf files its family composes
+# as a parameter (`conf=CONF_<FAMILY>`), so editing one (a gap case, a cloth default) reruns that
+# family's jobs through the params trigger (file contents, so a fresh clone's file times trigger
+# nothing). `conf/log` is left out (it switches recordings and progress, not results).
+import hashlib
+
+CONF_DIR = Path(workflow.basedir) / "conf"
+
+
+def conf_digest(*groups):
+    """sha256 (16 hex digits) of conf/config.yaml and every YAML file of the named groups."""
+    h = hashlib.sha256()
+    files = [CONF_DIR / "config.yaml"] + sorted(f for g in groups for f in (CONF_DIR / g).glob("*.yaml"))
+    for f in files:
+        h.update(f.relative_to(CONF_DIR).as_posix().encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+_IMAGING = ("camera", "projector", "reality", "effects", "render", "calibrate")
+CONF_CALIBRATION = conf_digest("calibrate", "camera", "projector")
+CONF_DEMO = conf_digest(*_IMAGING)
+CONF_RIGID = conf_digest("rigid", *_IMAGING)
+CONF_CLOTH = conf_digest("cloth", *_IMAGING)
+CONF_FLUID = conf_digest("fluid")
+CONF_POSTERIOR = conf_digest("posterior", "rigid", "cloth", *_IMAGING)
+CONF_GAP = conf_digest("gap", "rigid", "cloth", *_IMAGING)
+
 
 def stage_own(*stages):
     """Only the stages' own `overrides:` entries (see :func:`stage_overrides`), for rules that put a

@@ -21,6 +21,7 @@ rule reality_demo:
         ),
         rrd=f"{RESULTS}/footage/{{scene}}.reality.rrd",
     params:
+        conf=CONF_DEMO,
         out=get_out_dir,
         extra=stage_overrides("reality_demo"),
     log:

@@ -70,6 +70,7 @@ rule reality_fluid:
     wildcard_constraints:
         scene="[a-z_]+",
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         frames=FLUID_FRAMES,
         extra=stage_overrides("reality_fluid"),
@@ -101,6 +102,7 @@ rule fluid_piv_footage:
     wildcard_constraints:
         name="karman|jet",
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         extra=stage_overrides("fluid_piv_footage"),
     log:
@@ -136,6 +138,7 @@ rule fluid_flow:
         ),
         rrd=f"{RESULTS}/fluid/flow/{{footage}}/flow.rrd",
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         extra=stage_overrides("fluid_flow"),
     log:
@@ -168,6 +171,7 @@ rule fluid_middlebury:
             subcategory="optical flow",
         ),
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         extra=stage_overrides("fluid_middlebury"),
     log:
@@ -222,6 +226,7 @@ rule fluid_edit:
         field=f"{RESULTS}/fluid/edit/{{footage}}/{{edit}}/field.npz",
         rrd=f"{RESULTS}/fluid/edit/{{footage}}/{{edit}}/fluid.rrd",
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         frames=FLUID_RENDER_FRAMES,
         extra=stage_overrides("fluid_edit"),
@@ -249,6 +254,7 @@ rule fluid_metrics:
             subcategory="metrics",
         ),
     params:
+        conf=CONF_FLUID,
         out=get_out_dir,
         inputs=f"[{','.join(FLUID_SUMMARIES)}]",
         extra=stage_overrides("fluid_metrics"),

@@ -45,6 +45,7 @@ rule gap_suite:
         ),
         rrd=f"{RESULTS}/gap/suite/suite.rrd",
     params:
+        conf=CONF_GAP,
         out=get_out_dir,
         only=f"gap.only=[{GAP_SUITE_ONLY}]",
         extra=stage_overrides("gap_suite"),
@@ -72,6 +73,7 @@ rule gap_cloth_suite:
             f"{RESULTS}/gap/cloth_suite/shrinkage.csv", caption="../report/gap_shrinkage.rst", category="Sim-to-real gap"
         ),
     params:
+        conf=CONF_GAP,
         out=get_out_dir,
         only=f"gap.cloth.only=[{GAP_CLOTH_ONLY}]",
         extra=stage_overrides("gap_cloth_suite"),
@@ -102,6 +104,7 @@ rule diagnose_rigid:
         ),
         rrd=f"{RESULTS}/gap/rigid_{{case}}/diagnosis.rrd",
     params:
+        conf=CONF_GAP,
         out=get_out_dir,
         extra=stage_overrides("diagnose_rigid"),
     log:
@@ -134,10 +137,12 @@ rule diagnose_cloth:
         fabric="[A-Za-z0-9]+",
         trial="[A-Za-z0-9]+",
     params:
+        conf=CONF_GAP,
         out=get_out_dir,
-        extra=stage_overrides("diagnose_cloth"),
+        base=STAGE_BASE,
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
+        extra=stage_own("diagnose_cloth"),
     benchmark:
         f"{RESULTS}/benchmarks/diagnose_cloth_{{fabric}}_{{trial}}.tsv"
     log:
@@ -149,7 +154,7 @@ rule diagnose_cloth:
         runtime=60,  # minutes: quick 1-4.5 CPU-min; full setting linen 17 CPU-min, satin about twice that
     shell:
         "python -m vidsim.cli.diagnose_cloth paths.footage=$(dirname {input.meta}) gap.paths.fit={input.params} "
-        "paths.out={params.out} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
+        "paths.out={params.out} {params.base} {params.cloth} {params.fabric} {params.extra} > {log} 2>&1"
 
 
 rule gap_ball:
@@ -161,6 +166,7 @@ rule gap_ball:
         plot=report(f"{RESULTS}/gap/ball/ball_gap.png", caption="../report/gap_ball.rst", category="Sim-to-real gap"),
         rrd=f"{RESULTS}/gap/ball/ball_gap.rrd",
     params:
+        conf=CONF_GAP,
         out=get_out_dir,
         extra=stage_overrides("gap_ball"),
     log:

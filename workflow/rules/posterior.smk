@@ -61,6 +61,7 @@ rule posterior_rigid:
         chain=f"{RESULTS}/posterior/rigid/{{case}}/chain.npz",
         rrd=f"{RESULTS}/posterior/rigid/{{case}}/posterior.rrd",
     params:
+        conf=CONF_POSTERIOR,
         out=get_out_dir,
         footage=rigid_footage_dir,
         family=POSTERIOR_HYDRA,
@@ -111,12 +112,14 @@ rule posterior_cloth:
         diagnostics=f"{RESULTS}/posterior/cloth/{{fabric}}/posterior.yaml",
         chain=f"{RESULTS}/posterior/cloth/{{fabric}}/chain.npz",
     params:
+        conf=CONF_POSTERIOR,
         out=get_out_dir,
         inputs=posterior_cloth_inputs,
+        base=STAGE_BASE,
         cloth=CLOTH_HYDRA,
         fabric=cloth_fabric_overrides,
         family=POSTERIOR_HYDRA,
-        extra=stage_overrides("posterior_cloth"),
+        extra=stage_own("posterior_cloth"),
     log:
         f"{RESULTS}/logs/posterior_cloth_{{fabric}}.log",
     benchmark:
@@ -128,7 +131,7 @@ rule posterior_cloth:
         runtime=30,  # measured 2.1 CPU-min (quick twin), 15.4 CPU-min (default setting, no annealing cache)
     shell:
         "python -m vidsim.cli.posterior_cloth paths.out={params.out} {params.inputs} "
-        "{params.cloth} {params.fabric} {params.family} {params.extra} > {log} 2>&1"
+        "{params.base} {params.cloth} {params.fabric} {params.family} {params.extra} > {log} 2>&1"
 
 
 rule table1_cloth:
@@ -150,6 +153,7 @@ rule table1_cloth:
             subcategory="cloth Table 1",
         ),
     params:
+        conf=CONF_POSTERIOR,
         out=get_out_dir,
         inputs=table1_cloth_inputs,
         extra=stage_overrides("table1_cloth"),

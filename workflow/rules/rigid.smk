@@ -34,6 +34,7 @@ rule reality_rigid:
         ),
         rrd=f"{RESULTS}/footage/rigid_{{case}}.reality.rrd",
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         case=rigid_case_overrides,
         extra=stage_overrides("reality_rigid"),
@@ -62,6 +63,7 @@ rule segment_rigid:
             subcategory="{case}",
         ),
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         footage=rigid_footage_dir,
         case=rigid_case_overrides,
@@ -98,6 +100,7 @@ rule fit_rigid:
         ),
         rrd=f"{RESULTS}/rigid/{{case}}/rigid.rrd",
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         footage=rigid_footage_dir,
         case=rigid_case_overrides,
@@ -124,6 +127,7 @@ rule score_rigid:
     output:
         score=f"{RESULTS}/rigid/{{case}}/score.yaml",
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         footage=rigid_footage_dir,
         extra=stage_overrides("score_rigid"),
@@ -147,6 +151,7 @@ rule rigid_summary:
         csv=report(f"{RESULTS}/rigid/summary.csv", caption="../report/rigid_summary.rst", category="Rigid bodies"),
         png=report(f"{RESULTS}/rigid/summary.png", caption="../report/rigid_summary.rst", category="Rigid bodies"),
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         extra=stage_overrides("rigid_summary"),
     log:
@@ -170,6 +175,7 @@ rule rigid_ball:
         plot=report(f"{RESULTS}/rigid/ball/ball.png", caption="../report/rigid_ball.rst", category="Rigid bodies"),
         rrd=f"{RESULTS}/rigid/ball/ball.rrd",
     params:
+        conf=CONF_RIGID,
         out=get_out_dir,
         extra=stage_overrides("rigid_ball"),
     log:
