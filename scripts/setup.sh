@@ -25,11 +25,16 @@ apt_install() {
   as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
 }
 
-# 1. system packages: EGL + Mesa (software OpenGL) for pyrender without a display
+# 1. system packages: EGL + Mesa (software OpenGL) for pyrender without a display. Skipped with
+# VIDSIM_SKIP_APT=1 (a machine without root, e.g. a cluster login node: install the libraries by
+# hand or through modules); a package counts as present when dpkg knows it under its name or its
+# 64-bit-time name (Debian 13 / Ubuntu 24.04 renamed libglib2.0-0 to libglib2.0-0t64)
 SYS_PKGS=(libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri libgles2 libglib2.0-0)
 missing=()
-if command -v dpkg >/dev/null 2>&1; then
-  for p in "${SYS_PKGS[@]}"; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
+if [ "${VIDSIM_SKIP_APT:-0}" != 1 ] && command -v dpkg >/dev/null 2>&1; then
+  for p in "${SYS_PKGS[@]}"; do
+    dpkg -s "$p" >/dev/null 2>&1 || dpkg -s "${p}t64" >/dev/null 2>&1 || missing+=("$p")
+  done
 fi
 apt_install "${missing[@]}"
 
@@ -37,6 +42,10 @@ apt_install "${missing[@]}"
 PY="${PYTHON:-python3}"
 if ! "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>/dev/null; then
   say "need Python >= 3.11 (found: $("$PY" --version 2>&1 || echo none)); set PYTHON=/path/to/python3.11"; exit 1
+fi
+if [ -x .venv/bin/python ] && ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
+  say "the .venv has no working pip (an interrupted first set-up?): creating it again"
+  rm -rf .venv
 fi
 if [ ! -x .venv/bin/python ]; then
   say "creating .venv with $("$PY" --version)"

@@ -160,3 +160,25 @@ def test_your_own_recording_runs_as_a_rigid_case_without_reality_or_scoring(tmp_
                    f"rigid: {{cases: {{bad: {{seed: 3, footage: {mine}}}}}}}\n")
     r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
     assert r.returncode != 0 and "rigid.cases.bad: give either seed" in r.stdout + r.stderr
+
+
+def test_unknown_names_fail_at_parse_time(tmp_path):
+    """An unknown PIV recording is an error naming it (it had fallen through to the demo rule and
+    become tumbling-box footage), and a sweep plotted along a column its table lacks is refused
+    before any point runs (it had failed in the collect job after every point)."""
+    cfg = tmp_path / "piv.yaml"
+    cfg.write_text(f"results: {tmp_path}/results\nfluid: {{piv: [karman, cylinder]}}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    assert r.returncode != 0 and "unknown PIV recording 'cylinder'" in r.stdout + r.stderr, r.stdout[-2000:] + r.stderr[-2000:]
+    table = tmp_path / "my.tsv"
+    table.write_text("calibrate__n_views\tcamera__fx\n4\t500\n8\t500\n")
+    cfg = tmp_path / "sweep.yaml"
+    cfg.write_text(f"results: {tmp_path}/results\nsweep_calibration: {{table: {table}, x: calibrate__noise_sigma}}\n")
+    r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    out = r.stdout + r.stderr
+    assert r.returncode != 0 and "sweep_calibration.x = 'calibrate__noise_sigma' is not a column" in out, out[-2000:]
+    cfg.write_text(f"results: {tmp_path}/results\nsweep_calibration: {{table: {table}}}\n")
+    r = _smk("-n", "-p", "--profile", "workflow/profiles/default", "--configfile", str(cfg))
+    out = r.stdout + r.stderr
+    assert r.returncode == 0, out[-2000:]
+    assert "--x calibrate__n_views --group camera__fx" in out, out[-3000:]  # the table's own first two columns

@@ -29,7 +29,7 @@ rule calibrate_chessboard:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,  # measured peak RSS 176 MB
+        mem_mb=1000,  # measured peak RSS 176 MB, and ~170 MB for the job step's own Snakemake process
         runtime=10,
     shell:
         "python -m vidsim.cli.calibrate_real paths.footage={input.images} paths.out={params.out} {params.extra} > {log} 2>&1"
@@ -37,6 +37,8 @@ rule calibrate_chessboard:
 
 rule calibrate_scene:
     """Film a calibration target with the scene's camera (and projector) and calibrate from the images."""
+    wildcard_constraints:
+        scene="|".join(str(s) for s in (config.get("demo", {}) or {}).get("scenes", [])) or "(?!)",
     output:
         calib=f"{RESULTS}/calibration/{{scene}}/calibration.yaml",
         summary=report(

@@ -1,4 +1,5 @@
 # Helpers shared by all rules (input functions live only here).
+import hashlib
 import sys
 from pathlib import Path
 
@@ -27,8 +28,6 @@ STAGE_BASE = f"paths.results={RESULTS} {HYDRA_EXTRA}".strip()
 # as a parameter (`conf=CONF_<FAMILY>`), so editing one (a gap case, a cloth default) reruns that
 # family's jobs through the params trigger (file contents, so a fresh clone's file times trigger
 # nothing). `conf/log` is left out (it switches recordings and progress, not results).
-import hashlib
-
 CONF_DIR = Path(workflow.basedir) / "conf"
 
 
@@ -94,6 +93,8 @@ def get_out_dir(wildcards, output):
     return str(Path(output[0]).parent)
 
 
+# Each stage names env.yml as its conda environment, for the record only (the README's set-up uses a
+# venv), and Snakemake's `--sdm conda` mode is not supported (env.yml says so).
 CONDA_ENV = "../../env.yml"
 
 

@@ -9,6 +9,10 @@ import yaml as _fluid_yaml
 
 FLUID = config.get("fluid", {}) or {}
 FLUID_SCENES = list(FLUID.get("scenes", []))
+_PIV_KNOWN = ("karman", "jet")  # the PIVlab recordings fluid_piv_footage imports
+for _p in FLUID.get("piv", []) or []:
+    if _p not in _PIV_KNOWN:
+        raise ValueError(f"fluid.piv: unknown PIV recording {_p!r}: expected one of {list(_PIV_KNOWN)}")
 FLUID_PIV = [p for p in FLUID.get("piv", []) if shared_available(f"pivlab_{p}")]
 FLUID_MIDDLEBURY = shared_available("middlebury_flow")
 FLUID_EDIT_DIR = FLUID.get("edit_dir", "docs/fluid_edits")
@@ -100,7 +104,7 @@ rule fluid_piv_footage:
         ),
         rrd=f"{RESULTS}/footage/piv_{{name}}/footage.rrd",
     wildcard_constraints:
-        name="karman|jet",
+        name="|".join(_PIV_KNOWN),
     params:
         conf=CONF_FLUID,
         out=get_out_dir,
@@ -179,7 +183,7 @@ rule fluid_middlebury:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,  # measured peak RSS 239 MB
+        mem_mb=1000,  # measured peak RSS 239 MB, and ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.cli.fluid_middlebury paths.footage={input.scenes} paths.out={params.out} {params.extra} > {log} 2>&1"
@@ -263,7 +267,7 @@ rule fluid_metrics:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,  # measured peak RSS 128 MB
+        mem_mb=1000,  # measured peak RSS 128 MB, and ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.cli.fluid_metrics 'fluid.inputs={params.inputs}' paths.out={params.out} {params.extra} > {log} 2>&1"

@@ -162,7 +162,7 @@ rule table1_cloth:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=500,
+        mem_mb=1000,  # with ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.cli.cloth_table1 paths.out={params.out} {params.inputs} {params.extra} > {log} 2>&1"

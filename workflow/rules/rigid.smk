@@ -159,7 +159,7 @@ rule rigid_summary:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,  # measured peak RSS 250 MB
+        mem_mb=1000,  # measured peak RSS 250 MB, and ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.cli.rigid_summary \"rigid.paths.scores='{input.scores}'\" paths.out={params.out} "

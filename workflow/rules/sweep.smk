@@ -42,7 +42,7 @@ rule calibrate_sweep_point:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=600,  # measured peak RSS 287 MB
+        mem_mb=1000,  # measured peak RSS 287 MB, and ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.cli.calibrate {params.point} paths.out={params.out} {params.extra} > {log} 2>&1"
@@ -68,7 +68,7 @@ rule collect_calibration_sweep:
     conda:
         CONDA_ENV
     resources:
-        mem_mb=400,
+        mem_mb=1000,  # with ~170 MB for the job step's own Snakemake process
         runtime=5,
     shell:
         "python -m vidsim.report.sweep --table {input.table} --points {params.points} --out {params.out} "
