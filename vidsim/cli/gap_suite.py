@@ -9,9 +9,10 @@ effect), ``shrinkage.csv`` (held-out gap before/after, floor, closure, recovered
 ``suite.rrd`` (per case: silhouettes and gap curves over the frame timeline).
 
 Checkpoint: cases are written as they finish to ``.<out>.part/cases/``; a rerun after a kill (or a
-crash in one case) keeps every finished case whose stored key (its case entry, ``gap.diagnose`` and
-``gap.scene``) equals the current one and runs only the rest. A resumed case is not re-logged to
-``suite.rrd`` (its ``cases/<name>.png`` and ``.json`` are kept).
+crash in one case) keeps every finished case whose stored key (its case entry, ``gap.diagnose``,
+``gap.scene``, ``log.rerun`` and the package's source digest) equals the current one and runs only
+the rest. Each case keeps its own recording (``cases/<name>.rrd``) beside its ``.png`` and ``.json``,
+and ``suite.rrd`` is their merge, so it holds the resumed cases too.
 """
 
 from __future__ import annotations
