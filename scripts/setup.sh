@@ -44,13 +44,19 @@ if ! "$PY" -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else 1)' 2>
   say "need Python >= 3.11 (found: $("$PY" --version 2>&1 || echo none)); set PYTHON=/path/to/python3.11"; exit 1
 fi
 if [ -x .venv/bin/python ] && ! .venv/bin/python -m pip --version >/dev/null 2>&1; then
-  say "the .venv has no working pip (an interrupted first set-up?): creating it again"
-  rm -rf .venv
+  # an interrupted first set-up leaves a .venv without pip: put pip in (never delete a .venv)
+  say "the .venv has no working pip (an interrupted first set-up?): installing pip into it"
+  if ! .venv/bin/python -m ensurepip --upgrade >/dev/null 2>&1; then
+    say "could not install pip into .venv: remove the .venv folder and run this again"; exit 1
+  fi
 fi
 if [ ! -x .venv/bin/python ]; then
   say "creating .venv with $("$PY" --version)"
   if ! "$PY" -m venv .venv 2>/dev/null; then
     rm -rf .venv
+    if [ "${VIDSIM_SKIP_APT:-0}" = 1 ]; then
+      say "$PY cannot make a virtual environment (no ensurepip): install python3-venv, or set PYTHON to a Python that can"; exit 1
+    fi
     apt_install python3-venv
     "$PY" -m venv .venv
   fi

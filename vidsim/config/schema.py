@@ -150,7 +150,7 @@ class CalibrateConfig:
     projector_square_px: int = 28  # checker square the projector casts, projector pixels
     # where the projector casts its checker in each projector view: 0 always at the image's centre
     # (its intrinsics then poorly determined), > 0 a 3 x 3 grid of positions reaching this fraction
-    # of the way to the image's edges (docs/calibration.md, "Projector")
+    # of the way to the image's edges (docs/cloth_study.md, "Studio design")
     projector_pattern_spread: float = 0.5
     target_blank_width: Optional[float] = None  # m, blank area right of the print (None: scaled default)
     # calibration stills taken at this multiple of the video resolution (a camera's still mode;

@@ -607,7 +607,10 @@ def joint_pair_search(pool: list[str], singles: dict[str, dict], judge, supporte
         return [], None, out
     prev = dict(out[best_key])
     ho1 = singles[best[0]]["heldout_after_px"]
-    prev["closure_of_remaining"] = (ho1 - prev["heldout_after_px"]) / (ho1 - floor) if ho1 - floor > 0 else None
+    # None, as in the forward selection's strength, when the first effect left no excess above the
+    # naming margin (a fraction of nothing)
+    prev["closure_of_remaining"] = ((ho1 - prev["heldout_after_px"]) / (ho1 - floor)
+                                    if ho1 - floor > cfg.min_excess * floor else None)
     prev["named_jointly"] = True
     singles["+".join(best)] = prev
     return best, prev, out

@@ -1,4 +1,5 @@
 # Camera (and projector) calibration: the real chessboard set and synthetic scene targets.
+import re
 
 if stage_enabled("calibration_chessboard") and shared_available("opencv_chessboard"):
     TARGETS["calibration_chessboard"] = [f"{RESULTS}/calibration/chessboard/calibration.yaml"]
@@ -38,7 +39,9 @@ rule calibrate_chessboard:
 rule calibrate_scene:
     """Film a calibration target with the scene's camera (and projector) and calibrate from the images."""
     wildcard_constraints:
-        scene="|".join(str(s) for s in (config.get("demo", {}) or {}).get("scenes", [])) or "(?!)",
+        # the demo's scenes only (the cloth studio has its own rule, calibrate_cloth_scene); another
+        # name had matched and been calibrated as the demo scene
+        scene="|".join(re.escape(str(s)) for s in (config.get("demo", {}) or {}).get("scenes", [])) or "(?!)",
     output:
         calib=f"{RESULTS}/calibration/{{scene}}/calibration.yaml",
         summary=report(

@@ -6,6 +6,8 @@ if stage_enabled("demo"):
     ]
 
 
+import re
+
 # the demo's footage folders: only the names listed (an unknown footage name, e.g. a PIV recording
 # that is not imported, had fallen through to this rule and become a tumbling box)
 DEMO_SCENES = [str(s) for s in (config.get("demo", {}) or {}).get("scenes", [])]
@@ -14,7 +16,7 @@ DEMO_SCENES = [str(s) for s in (config.get("demo", {}) or {}).get("scenes", [])]
 rule reality_demo:
     """Render a tumbling box over a textured wall; write the footage folder and its truth beside it."""
     wildcard_constraints:
-        scene="|".join(DEMO_SCENES) or "(?!)",
+        scene="|".join(re.escape(s) for s in DEMO_SCENES) or "(?!)",
     input:
         calib=f"{RESULTS}/calibration/{{scene}}/calibration.yaml",
     output:

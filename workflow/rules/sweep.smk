@@ -22,7 +22,8 @@ for _k, _v in (("x", SWEEP_X), ("group", SWEEP_GROUP)):
         raise ValueError(f"sweep_calibration.{_k} = {_v!r} is not a column of the sweep table "
                          f"{SWEEP_CFG.get('table', 'workflow/config/sweeps/calibration_noise.tsv')} "
                          f"(columns: {list(_SWEEP_TABLE.columns)})")
-SWEEP_QUANTITIES = " ".join(SWEEP_CFG.get("quantities", ["rms_px", "camera_fx", "camera_scene_reprojection_px_median"]))
+_q = SWEEP_CFG.get("quantities", ["rms_px", "camera_fx", "camera_scene_reprojection_px_median"])
+SWEEP_QUANTITIES = " ".join([_q] if isinstance(_q, str) else [str(x) for x in _q])
 
 if stage_enabled("sweep_calibration"):
     TARGETS["sweep_calibration"] = [f"{RESULTS}/sweeps/calibration/sweep.csv", f"{RESULTS}/sweeps/calibration/sweep.png"]

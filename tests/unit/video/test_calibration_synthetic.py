@@ -209,11 +209,12 @@ def test_spread_patterns_cover_the_projector_image():
 
 def test_cloth_scene_projector_is_determined_with_spread_patterns():
     """The cloth scene's narrow camera sees only the middle of a wide projector's image: a checker
-    always cast at the projector's centre leaves its intrinsics loose (seeds 0-9 of this session:
-    fx 877-913 against 900, centre up to 49 mm off, swatch-region reprojection up to 3.9 px);
+    always cast at the projector's centre leaves its intrinsics loose (ten sessions, `python
+    benchmarks/bench_projector_calibration.py --spread 0`: fx 870-915 against 900, centre up to
+    66 mm off, swatch-region reprojection up to 4.7 px);
     checkers spread over half the way to the image's edges, with the intrinsics and the one
-    projector pose refined jointly on all views' points, pin it down (fx within 0.6 %, centre
-    within 11 mm, reprojection <= 1 px, on the same ten seeds)."""
+    projector pose refined jointly on all views' points, pin it down (fx within 0.4 %, centre
+    within 6.2 mm, reprojection <= 0.68 px over the same ten sessions)."""
     from vidsim.cli.calibrate import board_to_world, target_for
     from vidsim.config import camera_from_config, projector_from_config
     from vidsim.config.cloth import ClothCalibrationConfig, ClothCameraConfig, ClothProjectorConfig
@@ -235,6 +236,6 @@ def test_cloth_scene_projector_is_determined_with_spread_patterns():
     p = PinholeCamera.from_dict(out["projector"])
     X = np.random.default_rng(0).uniform([-0.4, -0.3, 0.7], [0.4, 0.3, 1.3], (200, 3))  # where the swatch hangs
     reproj = np.linalg.norm(p.project(X) - proj.project(X), axis=1)
-    assert abs(p.K[0, 0] / proj.K[0, 0] - 1) < 0.006 and abs(p.K[1, 1] / proj.K[1, 1] - 1) < 0.006
-    assert np.linalg.norm(p.center - proj.center) < 0.011
-    assert reproj.max() < 1.0 and np.median(reproj) < 0.3
+    assert abs(p.K[0, 0] / proj.K[0, 0] - 1) < 0.004 and abs(p.K[1, 1] / proj.K[1, 1] - 1) < 0.004
+    assert np.linalg.norm(p.center - proj.center) < 0.007
+    assert reproj.max() < 0.8 and np.median(reproj) < 0.25
