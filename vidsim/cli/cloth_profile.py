@@ -101,8 +101,11 @@ def _figure(profs, space, tol: float, path: Path, reopt: int = 0) -> None:
         if axis.log:
             ax.set_xscale("log")
         ax.set_ylim(bottom=max(0.0, np.nanmin(p.errors[ok] / p.e_hat) - 0.05) if ok.any() else 0)
-        ax.set_title(f"{p.name}: " + ("determined" if p.determined else "NOT determined (flat)"), fontsize=8,
-                     color="k" if p.determined else "C3")
+        if not p.determined:
+            label = "NOT determined (flat)"
+        else:
+            label = ("determined" if p.reoptimised else "sensitive (slice)") + ("" if p.resolved else ", width < grid step")
+        ax.set_title(f"{p.name}: {label}", fontsize=8, color="k" if p.determined else "C3")
         ax.tick_params(labelsize=7)
         ax.set_ylabel("E / E(estimate)", fontsize=7)
     for ax in axes.ravel()[n:]:

@@ -90,7 +90,9 @@ def run(cfg: DictConfig) -> None:
            "parameters": rows, "checks": checks, "not_determined": [n for n, r in rows.items() if r["determined"] is False]}
     write_text(out / "errors.csv", "parameter,estimate,truth,relative_error,estimated,determined,interval_lo,"
                "interval_hi\n" + "".join(_csv_row(n, r) for n, r in rows.items()))
-    _figure(rows, ratio, out / "errors.png", None if scale is None else scale["ratio_q90"], float(cfg.cloth.twin.rel_tol))
+    method = "joint fit" if Path(str(tc.params)).name == "fit.yaml" else "cross-trial selection"
+    _figure(rows, ratio, out / "errors.png", None if scale is None else scale["ratio_q90"], float(cfg.cloth.twin.rel_tol),
+            label=f"{Path(str(tc.footage)).name} ({method})")
     write_yaml(out / "score.yaml", doc)
     if scale is not None:
         print(f"score_cloth_twin: the true parameters moved by exp(N(0, {scale['sigma']:g})) give held-out ratios "
@@ -137,7 +139,8 @@ def _csv_row(name: str, r: dict) -> str:
             f"{lo},{hi}\n")
 
 
-def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None, rel_tol: float = 0.25) -> None:
+def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None, rel_tol: float = 0.25,
+            label: str = "twin") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -149,11 +152,17 @@ def _figure(rows: dict, ratio: float, path: Path, q90: float | None = None, rel_
     fig, ax = plt.subplots(figsize=(7, 3))
     ax.bar(range(len(names)), rel, color=col)
     ax.axhline(rel_tol, color="C3", lw=0.8, ls="--")  # the criterion (cloth.twin.rel_tol)
-    ax.set_yscale("symlog", linthresh=0.1)
+    ax.set_yscale("symlog", linthresh=0.01)
+    for i, n in enumerate(names):  # the profile's interval: does it hold the truth?
+        tin = rows[n].get("truth_in_interval")
+        if tin is not None:
+            ax.text(i, rel[i], "in" if tin else "out", ha="center", va="bottom", fontsize=6,
+                    color="C2" if tin else "C3")
     ax.set_xticks(range(len(names)), names, rotation=40, ha="right", fontsize=7)
     ax.set_ylabel("|estimate - truth| / truth")
     scale = "" if q90 is None else f" (true parameters moved a few %: up to {q90:.3f}, 90 %)"
-    ax.set_title(f"twin: relative errors (grey: not determined by the footage; orange: not estimated)\n"
+    ax.set_title(f"{label}: relative errors (grey: not determined by the footage; orange: not estimated; "
+                 f"in/out: truth inside the profile's interval)\n"
                  f"held-out error / true-parameter error = {ratio:.3f}{scale}", fontsize=7)
     save_figure(fig, path)
 

@@ -138,8 +138,9 @@ class ModelSettings:
     ``skirt_fold_amplitude`` > 0 [m]: a skirt trial's error is the mean over that many fold-seeded
     starts (:func:`vidsim.clothfit.rig.skirt_fold_starts`, seed ``skirt_fold_seed``); 0: one start
     in the exact cone. Defaults as ``cloth.skirt`` (:class:`vidsim.config.cloth.ClothSkirtConfig`).
-    ``multirate``: the "fast" scheme's bending kicks once per that many steps ("1": plain velocity
-    Verlet; "auto": from the ratio of stable steps), :func:`vidsim.cloth.simulate`'s ``multirate``.
+    ``multirate``: the "fast" scheme's bending kicks once per that many steps ("1", the default:
+    plain velocity Verlet; "auto": from the ratio of stable steps), :func:`vidsim.cloth.simulate`'s
+    ``multirate``.
     ``damping``: "explicit", "split" or "auto", :func:`vidsim.cloth.simulate`'s ``damping``.
     """
 
@@ -147,7 +148,7 @@ class ModelSettings:
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
-    multirate: str = "auto"
+    multirate: str = "1"
     damping: str = "auto"
     skirt_rings: int = 8
     skirt_around: int = 24

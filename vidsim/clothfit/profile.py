@@ -40,9 +40,15 @@ class Profile:
         interval_u: (lo, hi) unit positions of the indifference interval.
         interval: (lo, hi) the same in the parameter's unit.
         width: interval width as a fraction of the range.
-        determined: ``width <= max_width``.
+        determined: ``width <= max_width``. For a *slice* (the others held) this says the error
+            rises along the parameter, not that its value is right: another parameter may make
+            up for it (the stiff twin's stretch was "determined" at 4x its truth).
         best_u: unit position of the profile's minimum (an estimate that is not at its own
             profile minimum shows the optimiser stopped short along this axis).
+        resolved: each side of the interval ends beyond the estimate's grid neighbour (or at the
+            range's end); False: the width is set by the grid's spacing and the linear
+            interpolation to the first point above the threshold, not measured (review, 5 Dec 2026).
+        reoptimised: the others were re-optimised at each point (a profile, not a slice).
     """
 
     name: str
@@ -56,9 +62,12 @@ class Profile:
     width: float
     determined: bool
     best_u: float
+    resolved: bool = True
+    reoptimised: bool = False
 
     def to_dict(self) -> dict:
         return {"estimate": float(self.values[np.argmin(np.abs(self.u - self.u_hat))]), "determined": bool(self.determined),
+                "kind": "profile" if self.reoptimised else "slice", "interval_resolved": bool(self.resolved),
                 "interval": [float(x) for x in self.interval], "width_fraction": float(self.width),
                 "error_at_estimate": float(self.e_hat), "profile_min_value": float(self.values[np.argmin(self.errors)]),
                 "profile_min_error": float(np.min(self.errors))}
@@ -183,6 +192,12 @@ def profile_parameters(objective, theta_hat: np.ndarray, points: int = 7, tol: f
         lo, hi = indifference_interval(grid, e_use, float(u_hat[d]), e_hat, tol_eff)
         vlo = float(space.from_unit(np.where(np.arange(space.dim) == d, lo, u_hat))[d])
         vhi = float(space.from_unit(np.where(np.arange(space.dim) == d, hi, u_hat))[d])
+        # resolved: on each side a grid point other than the estimate lies inside the interval,
+        # or the interval reaches the range's end
+        k_hat = int(np.argmin(np.abs(grid - u_hat[d])))
+        res_lo = lo <= 0.0 or (k_hat > 0 and grid[k_hat - 1] >= lo)
+        res_hi = hi >= 1.0 or (k_hat < grid.size - 1 and grid[k_hat + 1] <= hi)
         out.append(Profile(name, grid, vals, errs, float(u_hat[d]), e_hat, (lo, hi), (vlo, vhi), hi - lo,
-                           (hi - lo) <= max_width, float(grid[int(np.argmin(e_use))])))
+                           (hi - lo) <= max_width, float(grid[int(np.argmin(e_use))]), bool(res_lo and res_hi),
+                           bool(reoptimise_evals > 0 and others.any())))
     return out

@@ -154,9 +154,10 @@ class ClothModelConfig:
     ``resolution``: vertices per side of the swatch; ``settle_s``: rest time before frame 0
     (grips still); ``settle_bath``: viscous damping rate of that settle, 1/s (0 = off: the
     model starts the clip still swinging from its flat start); ``frame_stride``: use every k-th footage frame; ``max_frames``: 0 = all.
-    ``multirate``: the fast scheme's bending kicks once per that many steps ("1": plain velocity
-    Verlet; "auto", the default since 3 Dec 2026: the factor from the ratio of the bending's and the
-    whole model's stable steps; :func:`vidsim.cloth.simulate`, docs/cloth_parameters.md).
+    ``multirate``: the fast scheme's bending kicks once per that many steps ("1", plain velocity
+    Verlet: the default again since 5 Dec 2026; "auto", the default from 3 to 5 Dec 2026: the factor
+    from the ratio of the bending's and the whole model's stable steps, up to 4; measured to move
+    the model away from a plain-Verlet twin on soft fabrics: docs/cloth_parameters.md).
     ``damping``: how the fast scheme integrates the stretch, shear and bending dampings: "explicit"
     (as forces, the setting of every fit before 4 Dec 2026), "split" (as per-condition decays after
     each step, stable for any step) or "auto", the default since 4 Dec 2026 (split where that
@@ -168,7 +169,7 @@ class ClothModelConfig:
     settle_s: float = 0.5
     settle_bath: float = 0.0
     integrator: str = "fast"
-    multirate: str = "auto"
+    multirate: str = "1"
     damping: str = "auto"
     frame_stride: int = 1
     max_frames: int = 0
