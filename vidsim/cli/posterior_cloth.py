@@ -222,7 +222,11 @@ def run(cfg: DictConfig) -> None:
         "design_rounds": post.rounds, "cache": cache_notes, "fixed": fixed,
         "trials": [t.name for t in trials], "point_estimate": pc.params,
         "config": to_plain(pc)})
-    save_figure(corner_figure(disp, dnames, None, np.where(logs, np.log10(theta_sel), theta_sel)), tmp / "corner.png")
+    warn = ", ".join(w for w, bad in (("chain NOT converged", not diag.get("converged", True)),
+                                       ("multimodal", bool(diag.get("multimodal"))),
+                                       ("surrogate check failed (strict)", not check.get("ok", True))) if bad)
+    save_figure(corner_figure(disp, dnames, None, np.where(logs, np.log10(theta_sel), theta_sel), flags=warn),
+                tmp / "corner.png")
     save_figure(correlation_figure(corr, dnames, "cloth posterior correlation (log10 of log-scaled parameters)"),
                 tmp / "correlation.png")
     check_figure(post.check, post.w, tmp / "check.png")

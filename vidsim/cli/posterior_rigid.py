@@ -128,7 +128,10 @@ def run(cfg: DictConfig) -> None:
             "q_base": post.q_base.tolist(), "note": "rx ry rz: rotation (degrees, body axes) from q_base",
             "config": to_plain(pc)})
         nat_point = np.array([r["point"] for r in post.summary])
-        save_figure(corner_figure(post.samples(), post.names, post.units, nat_point), tmp / "corner.png")
+        warn = ", ".join(w for w, bad in ((f"chain NOT converged ({diag['n_steps']} steps, < 50 tau of "
+                                            f"{diag['tau_max']:.0f})", not diag["converged"]),
+                                           ("multimodal", bool(diag.get("multimodal")))) if bad)
+        save_figure(corner_figure(post.samples(), post.names, post.units, nat_point, flags=warn), tmp / "corner.png")
         save_figure(correlation_figure(post.corr, post.names), tmp / "correlation.png")
     replace_dir(tmp, out)
     print(f"posterior_rigid: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "

@@ -68,9 +68,16 @@ class RerunLogger:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._tmp = self.path.with_name(f".{self.path.name}.part")
         app_id = re.sub(r"[^a-z0-9_-]", "-", app_id.lower())  # rerun's entry-name rules
-        # default id: the output folder and the file (calibrate.rrd of two sweep points, or rigid.rrd of two
-        # throws, shared the id "calibrate"/"rigid", and the viewer merged them into one recording)
-        self.rec = rr.RecordingStream(app_id, recording_id=recording_id or f"{self.path.parent.name}/{self.path.stem}")
+        # default id: the output folder's parent, the folder and the file (calibrate.rrd of two sweep
+        # points, or rigid.rrd of two throws, shared the id "calibrate"/"rigid", and the viewer merged
+        # them into one recording; cloth/fit/satin_exp1 and cloth/fit_cmaes/satin_exp1 shared
+        # "satin_exp1/cloth"), with a stage's staging folder (".<name>.part") named as its final one
+        def final(name: str) -> str:
+            m = re.fullmatch(r"\.(.+)\.part(?:-[^/]*)?", name)
+            return m.group(1) if m else name
+
+        rid = "/".join(final(p) for p in (self.path.parent.parent.name, self.path.parent.name) if p) + f"/{self.path.stem}"
+        self.rec = rr.RecordingStream(app_id, recording_id=recording_id or rid)
         self.rec.save(str(self._tmp))
         self._closed = False
 

@@ -7,13 +7,15 @@ import numpy as np
 
 def corner_figure(samples: np.ndarray, names: list[str], units: list[str] | None = None,
                   point: np.ndarray | None = None, truth: np.ndarray | None = None, bins: int = 30,
-                  max_points: int = 4000):
+                  max_points: int = 4000, flags: str = ""):
     """Corner plot: 1-D marginals on the diagonal (5/50/95 % marked), 2-D scatter below.
 
     Args:
         samples: (N, D) posterior samples; names/units: D labels.
         point: (D,) optimiser's estimate (red); truth: (D,) known truth of a synthetic case (blue).
         bins: histogram bins; max_points: scatter points shown (thinned evenly).
+        flags: quality warnings printed under the title in red (e.g. "chain NOT converged"), so the
+            figure never shows an unconverged or unchecked posterior as if it were sound.
 
     Returns:
         A matplotlib Figure.
@@ -64,6 +66,8 @@ def corner_figure(samples: np.ndarray, names: list[str], units: list[str] | None
                 ax.set_yticks([])
     fig.suptitle("posterior (black: 5/50/95 %" + (", red: estimate" if point is not None else "")
                  + (", blue: truth" if truth is not None else "") + ")", fontsize=8)
+    if flags:
+        fig.text(0.5, 1 - 0.22 / size, flags, ha="center", va="top", fontsize=7, color="C3")
     return fig
 
 
