@@ -123,9 +123,10 @@ def _arrow_figure(path: Path, spec: EditSpec, bg: np.ndarray, before: np.ndarray
 
     ds = spec.downsample
     fig, axes = plt.subplots(1, 2, figsize=(10, 5.2))
+    # one arrow scale for both panels (each panel's own had drawn the slower field the longer; review)
+    vmax = max(max(float(np.percentile(np.linalg.norm(f, axis=-1), 95)) for f in (before, after)), 1e-6)
     for ax, f, name in ((axes[0], before, "before: the footage's mean flow"), (axes[1], after, "after: the edited field")):
-        vmax = max(float(np.percentile(np.linalg.norm(f, axis=-1), 95)), 1e-6)
-        name += f" (arrow of one cell = {vmax:.2f} px/frame)"
+        name += f" (arrow of one cell = {vmax:.2f} px/frame, both panels)"
         ax.imshow(bg)
         o, v = arrow_grid(f, step, scale=0.9 * step / vmax)
         ax.quiver(o[:, 0], o[:, 1], v[:, 0], v[:, 1], color="yellow", angles="xy", scale_units="xy", scale=1, width=0.003)

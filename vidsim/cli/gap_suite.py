@@ -103,8 +103,9 @@ def _plot_confusion(rows: list[str], cols: list[str], M: np.ndarray, path: Path)
     ax.imshow(M, cmap="Blues")
     for i in range(len(rows)):
         for j in range(len(cols)):
-            if M[i, j]:
-                ax.text(j, i, str(M[i, j]), ha="center", va="center")
+            if M[i, j]:  # white on the dark cells (black on navy was unreadable; review)
+                ax.text(j, i, str(M[i, j]), ha="center", va="center",
+                        color="white" if M[i, j] > 0.5 * M.max() else "black")
     ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right")
     ax.set_yticks(range(len(rows)), rows)
     ax.set_xlabel("first effect named by the blind diagnosis")
