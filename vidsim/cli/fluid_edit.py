@@ -43,7 +43,7 @@ from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit, undeclared_obstacles, video_fields
 from vidsim.fluid.viz import arrow_grid
-from vidsim.io.atomic import atomic_path, replace_dir, write_json, write_npz, write_text
+from vidsim.io.atomic import atomic_path, replace_dir, to_json, write_json, write_npz, write_text
 from vidsim.io.footage import load_yaml, read_footage
 from vidsim.log import make_logger
 
@@ -318,7 +318,7 @@ def run(cfg: DictConfig) -> None:
             lg.arrows2d("sim/camera/field", oa, va)
         lg.series("metric/rendered_flow_epe_px", r["epe_frames"], timeline="frame")
         lg.series("optim/objective", np.asarray(res.history), timeline="iter")
-        lg.text("log", json.dumps(summary, default=float))
+        lg.text("log", to_json(summary, default=float))
         write_video(tmp / "edit.mp4", outf, float(ec.video_fps))
         g = np.linspace(0, n_frames - 1, min(int(ec.gif_frames), n_frames)).round().astype(int)
         sep = np.full((H, 2, 3), 255, np.uint8)
@@ -335,8 +335,7 @@ def run(cfg: DictConfig) -> None:
         write_npz(tmp / "field.npz", field_nodes=res.field, field_px=r["edited_field_px"].astype(np.float32),
                   video_mean_px=video_mean.astype(np.float32), exits=res.exits, codes=res.codes, desired=res.desired)
         # strict JSON: a figure that cannot be measured (flicker without a static region: NaN) is null there
-        write_json(tmp / "summary.json", {k: (None if isinstance(v, float) and not np.isfinite(v) else v)
-                                          for k, v in summary.items()})
+        write_json(tmp / "summary.json", summary)
         flat = {k: v for k, v in summary.items() if not isinstance(v, (dict, list))}
         flat["undeclared_obstacles"] = len(undeclared)
         flat.update({f"fraction_in_sink_{k}": v for k, v in per_sink.items()})

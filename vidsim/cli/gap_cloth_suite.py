@@ -15,7 +15,9 @@ Only the scoring reads the truth (:func:`vidsim.gap.cloth_suite.run_case`).
 
 Checkpoint: cases are written as they finish to ``.<out>.part/cases/``; a rerun after a kill keeps
 every finished case whose stored key (its case entry, ``gap.cloth.diagnose``, ``gap.cloth.scene``
-and the ``cloth`` node it films and fits with) is unchanged, as the rigid suite does.
+and the ``cloth`` node it films and fits with) is unchanged, as the rigid suite does. JSON files are
+strict as the rigid suite's are (``cases/<name>.json``: non-finite numbers as the strings ``"nan"``,
+``"inf"``, ``"-inf"``, read back as floats on resume; ``suite.json``: ``null``).
 """
 
 from __future__ import annotations
@@ -29,7 +31,14 @@ from omegaconf import DictConfig, OmegaConf
 
 import vidsim
 from vidsim.cli._app import stage_app
-from vidsim.cli.gap_suite import finished_or_reused, headline, select_cases, write_confusion, write_shrinkage
+from vidsim.cli.gap_suite import (
+    CASE_NONFINITE,
+    finished_or_reused,
+    headline,
+    select_cases,
+    write_confusion,
+    write_shrinkage,
+)
 from vidsim.errors import ConfigError
 from vidsim.io.atomic import replace_dir, write_json
 from vidsim.log.progress import Progress
@@ -94,7 +103,8 @@ def run(cfg: DictConfig) -> None:
         except ClothGapError as e:
             raise ConfigError(f"gap.cloth.cases.{n}: {e}") from e
         scores[n] = s
-        write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": d.to_dict()})
+        write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": d.to_dict()},
+                   CASE_NONFINITE)
         shutil.rmtree(tmp / "running" / n, ignore_errors=True)
         prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
     shutil.rmtree(tmp / "running", ignore_errors=True)

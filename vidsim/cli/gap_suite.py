@@ -13,6 +13,11 @@ crash in one case) keeps every finished case whose stored key (its case entry, `
 ``gap.scene``, ``log.rerun`` and the package's source digest) equals the current one and runs only
 the rest. Each case keeps its own recording (``cases/<name>.rrd``) beside its ``.png`` and ``.json``,
 and ``suite.rrd`` is their merge, so it holds the resumed cases too.
+
+Every JSON file is strict (no ``NaN``/``Infinity`` tokens). ``suite.json`` writes a non-finite number
+as ``null``; ``cases/<name>.json``, which a resumed run reads back and computes the headline from,
+writes it as the string ``"nan"``, ``"inf"`` or ``"-inf"`` (:data:`CASE_NONFINITE`), so a resumed
+suite scores exactly as an uninterrupted one.
 """
 
 from __future__ import annotations
@@ -30,10 +35,15 @@ from vidsim.cli._app import stage_app
 from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
 from vidsim.errors import ConfigError
 from vidsim.gap.rigid_model import GapError
-from vidsim.io.atomic import replace_dir, write_json, write_text
+from vidsim.io.atomic import replace_dir, restore_nonfinite, to_json, write_json, write_text
 from vidsim.log import make_logger, merge_recordings
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
+
+
+#: how ``cases/<name>.json`` writes a non-finite float (:func:`vidsim.io.atomic.to_json`): as a string
+#: that :func:`finished_case` turns back into the float, since a resumed run computes with the scores
+CASE_NONFINITE = "string"
 
 
 def headline(scores: dict[str, dict]) -> dict:
@@ -80,7 +90,8 @@ def finished_or_reused(folder: Path, prev: Path, name: str, key: dict,
 
 def finished_case(folder: Path, name: str, key: dict, companions: tuple[str, ...] = (".png",)) -> dict | None:
     """The score of case ``name`` from an interrupted run, when it finished with the same ``key``
-    (and its ``companions``, files written before the json, exist)."""
+    (and its ``companions``, files written before the json, exist). Non-finite numbers, stored as
+    strings (:data:`CASE_NONFINITE`), come back as floats: the score is the one the case computed."""
     js = folder / f"{name}.json"
     if not js.exists() or not all((folder / f"{name}{ext}").exists() for ext in companions):
         return None
@@ -88,9 +99,10 @@ def finished_case(folder: Path, name: str, key: dict, companions: tuple[str, ...
         stored = json.loads(js.read_text())
     except (OSError, json.JSONDecodeError):
         return None
-    if stored.get("key") != json.loads(json.dumps(key)):
+    # compared as stored (a NaN in a key, a string there, then equals itself)
+    if not isinstance(stored, dict) or stored.get("key") != json.loads(to_json(key, CASE_NONFINITE)):
         return None
-    return stored["score"]
+    return restore_nonfinite(stored["score"])
 
 
 def _plot_confusion(rows: list[str], cols: list[str], M: np.ndarray, path: Path) -> None:
@@ -195,7 +207,8 @@ def run(cfg: DictConfig) -> None:
             plot_failed(tmp / "cases" / f"{n}.png", n, str(e))
             with make_logger(tmp / "cases" / f"{n}.rrd", "vidsim.gap_suite", cfg.log.rerun, recording_id="suite") as lg:
                 lg.text(f"{n}/log", f"case failed: {e}")
-            write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": None})
+            write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s, "diagnosis": None},
+                       CASE_NONFINITE)
             prog.update(note=f"{n}: FAILED ({e})")
             continue
         except GapError as e:
@@ -208,7 +221,7 @@ def run(cfg: DictConfig) -> None:
             log_diagnosis(lg, d, masks, prefix=f"{n}/")
         # the json last: its presence (with the same key) marks the case as finished
         write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s,
-                                                 "diagnosis": d.to_dict()})
+                                                 "diagnosis": d.to_dict()}, CASE_NONFINITE)
         prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
     if cfg.log.rerun:
         merge_recordings([tmp / "cases" / f"{n}.rrd" for n in names], tmp / "suite.rrd")

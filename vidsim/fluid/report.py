@@ -37,6 +37,7 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if "epe_px" in s and isinstance(s["epe_px"], dict):  # Middlebury
             m = s["method"]
             for scene, d in s["epe_px"].items():
+                d = {k: (float("nan") if v is None else v) for k, v in d.items()}  # null: not measurable
                 ref = d.get("dis_medium")
                 rows.append(_row(f"middlebury/{scene}", f"epe_px ({m})", d[m],
                                  f"<= DIS medium ({ref:.4f})" if ref is not None else "", d[m] <= ref if ref is not None else None))

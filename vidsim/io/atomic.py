@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -72,17 +73,49 @@ def replace_dir(tmp: str | os.PathLike, out: str | os.PathLike, stale: tuple = (
         shutil.rmtree(old, ignore_errors=True)
 
 
-def _to_plain(obj: Any) -> Any:
+#: how :func:`to_json` writes a non-finite float: ``"null"`` (strict JSON's usual reading, the default;
+#: the value is lost) or ``"string"`` (``"nan"``, ``"inf"``, ``"-inf"``, for files a reader computes
+#: with again and that need the distinction: :func:`restore_nonfinite` turns them back into floats)
+NONFINITE_MODES = ("null", "string")
+_NONFINITE_STRINGS = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
+
+
+def _to_plain(obj: Any, nonfinite: str | None = None) -> Any:
+    """Plain Python values (numpy arrays and scalars, paths, tuples converted); with ``nonfinite``
+    (one of :data:`NONFINITE_MODES`) every NaN / +-inf float is replaced as that mode says."""
     if isinstance(obj, dict):
-        return {str(k): _to_plain(v) for k, v in obj.items()}
+        return {str(k): _to_plain(v, nonfinite) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_to_plain(v) for v in obj]
+        return [_to_plain(v, nonfinite) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _to_plain(obj.tolist())
+        return _to_plain(obj.tolist(), nonfinite)
     if isinstance(obj, np.generic):
-        return obj.item()
+        return _to_plain(obj.item(), nonfinite)
     if isinstance(obj, Path):
         return str(obj)
+    if nonfinite is not None and isinstance(obj, float) and not math.isfinite(obj):
+        return None if nonfinite == "null" else ("nan" if obj != obj else ("inf" if obj > 0 else "-inf"))
+    return obj
+
+
+def to_json(data: Any, nonfinite: str = "null", **kw: Any) -> str:
+    """``data`` (numpy arrays allowed) as strict JSON text (``allow_nan=False``: no ``NaN`` or
+    ``Infinity`` tokens, which Python reads but browsers and ``jq`` refuse). Non-finite floats are
+    written as ``nonfinite`` says (:data:`NONFINITE_MODES`); ``kw`` go to :func:`json.dumps`."""
+    if nonfinite not in NONFINITE_MODES:
+        raise ValueError(f"nonfinite must be one of {NONFINITE_MODES}, got {nonfinite!r}")
+    return json.dumps(_to_plain(data, nonfinite), allow_nan=False, **kw)
+
+
+def restore_nonfinite(obj: Any) -> Any:
+    """The inverse of ``to_json(..., nonfinite="string")``: the strings ``"nan"``, ``"inf"`` and
+    ``"-inf"`` anywhere in a parsed document become floats again (everything else unchanged)."""
+    if isinstance(obj, dict):
+        return {k: restore_nonfinite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [restore_nonfinite(v) for v in obj]
+    if isinstance(obj, str) and obj in _NONFINITE_STRINGS:
+        return _NONFINITE_STRINGS[obj]
     return obj
 
 
@@ -92,10 +125,13 @@ def write_yaml(path: str | os.PathLike, data: Any) -> None:
         tmp.write_text(yaml.safe_dump(_to_plain(data), sort_keys=False))
 
 
-def write_json(path: str | os.PathLike, data: Any) -> None:
-    """Write ``data`` (numpy arrays allowed) as JSON, atomically."""
+def write_json(path: str | os.PathLike, data: Any, nonfinite: str = "null") -> None:
+    """Write ``data`` (numpy arrays allowed) as strict JSON, atomically (:func:`to_json`: a NaN or
+    infinite float becomes ``null``, or with ``nonfinite="string"`` the string ``"nan"``/``"inf"``/
+    ``"-inf"``, read back by :func:`restore_nonfinite`)."""
+    text = to_json(data, nonfinite, indent=2)  # before the file is opened: a refused value leaves no file
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(_to_plain(data), indent=2))
+        tmp.write_text(text)
 
 
 def write_text(path: str | os.PathLike, text: str) -> None:

@@ -5,7 +5,10 @@ fsync-ed before the optimiser continues. Optimisers are deterministic given thei
 killed run resumes by running again from the start: every evaluation it already made is found
 here (keyed by the exact unit-cube point) and returns at once, and the run continues past the
 kill point with exactly the state it would have had. A torn last line (killed mid-write) is
-ignored on reading.
+ignored on reading. Lines are strict JSON: a non-finite number in a record's ``info`` is written
+as the string ``"nan"``, ``"inf"`` or ``"-inf"`` and read back as that float
+(:func:`vidsim.io.atomic.restore_nonfinite`; logs written before 5 Dec 2026 with bare ``NaN``
+tokens still read).
 
 A log belongs to one objective: with a ``context`` (e.g. :func:`fingerprint` of the footage and
 settings that decide a score) its first line is ``{"context": ...}``, and a log found with another
@@ -28,6 +31,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from vidsim.io.atomic import restore_nonfinite, to_json
 from vidsim.optim import FAILED_SCORE
 
 
@@ -132,7 +136,7 @@ class EvalCache:
                 except json.JSONDecodeError:
                     continue  # torn last line of a killed run
                 if "key" in rec:  # (the context header has none)
-                    self.store[rec["key"]] = (float(rec["f"]), rec.get("info", {}))
+                    self.store[rec["key"]] = (float(rec["f"]), restore_nonfinite(rec.get("info", {})))
         self._fh = None
         if self.path is not None:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -140,7 +144,7 @@ class EvalCache:
             new = not self.path.is_file() or self.path.stat().st_size == 0
             self._fh = open(self.path, "a")
             if new and context is not None:
-                self._fh.write(json.dumps({"context": context}) + "\n")
+                self._fh.write(to_json({"context": context}) + "\n")
                 self._fh.flush()
                 os.fsync(self._fh.fileno())
 
@@ -189,7 +193,7 @@ class EvalCache:
             self.store[key] = (f, info)
             self.n_new += 1
             if self._fh is not None:
-                self._fh.write(json.dumps({"key": key, "u": u.tolist(), "f": f, "info": info}) + "\n")
+                self._fh.write(to_json({"key": key, "u": u, "f": f, "info": info}, "string") + "\n")
                 self._fh.flush()
                 os.fsync(self._fh.fileno())
         self.history.append((u.copy(), f))

@@ -212,3 +212,50 @@ def test_a_code_change_reruns_the_cases(tmp_path, monkeypatch, calls):
     monkeypatch.setattr(vidsim, "SOURCE_DIGEST", "another-version")
     stage.run(_cfg(out))
     assert made == [201, 202, 203, 201, 202, 203]
+
+
+def test_a_resumed_case_with_nonfinite_figures_scores_as_an_uninterrupted_run(tmp_path, monkeypatch):
+    """The case files are strict JSON (non-finite numbers as the strings "nan"/"inf"/"-inf", not NaN
+    tokens); a resumed suite reads them back as floats, so its headline, shrinkage.csv and suite.json
+    equal an uninterrupted run's (a null read back as "not measured" would have changed the headline)."""
+    from tests.unit.test_strict_json import strict_loads
+
+    crash = {"seed": None}
+
+    def fake_run_case(case, dcfg, scene):
+        if case["seed"] == crash["seed"]:
+            raise RuntimeError("killed mid-suite")
+        s = _score(case["label"])
+        if case["label"] == "lens_k1":  # figures that could not be measured: NaN and infinities
+            s.update({"named": ["lens_k1"], "named_first": "lens_k1", "correct": True, "noise_floor_px": float("nan"),
+                      "closure": {"lens_k1": float("nan")}, "heldout_after_px": {"lens_k1": float("-inf")},
+                      "recovery": {"lens_k1": {"estimate": 0.1, "truth": 0.3, "rel_error": float("inf")}}})
+        return _Diag(str(case["seed"])), s, None, None
+
+    monkeypatch.setattr(suite, "run_case", fake_run_case)
+    monkeypatch.setattr(stage, "plot_diagnosis", lambda d, path, title="": Path(path).write_bytes(b"png"))
+    monkeypatch.setattr(stage, "log_diagnosis", lambda lg, d, masks, prefix="": None)
+    only = "gap.only=[lens_k1,null_a]"
+    whole = tmp_path / "whole"
+    stage.run(_cfg(whole, only))
+    resumed = tmp_path / "resumed"
+    crash["seed"] = 201  # null_a: lens_k1 finished before the kill
+    with pytest.raises(RuntimeError):
+        stage.run(_cfg(resumed, only))
+    crash["seed"] = None
+    stage.run(_cfg(resumed, only))
+    for out in (whole, resumed):
+        for f in ("suite.json", "cases/lens_k1.json", "cases/null_a.json"):
+            strict_loads((out / f).read_text())  # no NaN / Infinity tokens
+    raw = json.loads((resumed / "cases" / "lens_k1.json").read_text())["score"]
+    assert raw["closure"] == {"lens_k1": "nan"} and raw["recovery"]["lens_k1"]["rel_error"] == "inf"
+    a, b = (json.loads((o / "suite.json").read_text()) for o in (whole, resumed))
+    assert b["resumed_cases"] == ["lens_k1"] and a["resumed_cases"] == []
+    for d in (a, b):
+        d.pop("seconds"), d.pop("resumed_cases")
+    assert a == b
+    # the NaN closure counts as measured and not closing, as in a run that never stopped
+    assert b["headline"]["closure_not_measured"] == 0 and b["headline"]["closure_at_least_50pct"] == "0/1"
+    for f in ("shrinkage.csv", "confusion.csv"):
+        assert (whole / f).read_text() == (resumed / f).read_text()
+    assert "lens_k1,lens_k1,lens_k1,True,1.00,nan,lens_k1,-inf,nan,0.1,0.3,inf" in (resumed / "shrinkage.csv").read_text()
