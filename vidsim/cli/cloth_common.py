@@ -4,6 +4,8 @@ config -> objective, parameter tables. File reading goes through :mod:`vidsim.io
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from dataclasses import fields as dc_fields
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +24,7 @@ from vidsim.render.projector import Projector
 
 __all__ = ["ClothStageError", "feature_settings", "load_trial", "make_objective", "params_dict", "fixed_params",
            "object_kind", "params_from_dict", "read_selected", "fabric_sets", "fabric_matrix", "matrix_figure", "matrix_csv",
-           "irradiance_to_uint8"]
+           "irradiance_to_uint8", "LoggedScores", "CellScore"]
 
 #: what a cloth footage folder's meta.yaml must give (known inputs), for every object and per
 #: object kind (``object: {kind: swatch | skirt}``; a folder without ``object`` is a swatch)
@@ -196,8 +198,79 @@ def fabric_sets(node: DictConfig, where: str) -> tuple[list[str], list[str], lis
     return fabrics, pfiles, footage, sets
 
 
+@dataclass
+class CellScore:
+    """A parameter set's score on one objective as :class:`LoggedScores` logged it (the fields of
+    :class:`~vidsim.clothfit.objective.EvalResult` a score needs; no images)."""
+
+    score: float
+    ok: bool
+    failure: str | None
+    members: list[list[float]]
+
+
+def params_key(p: ClothParams) -> np.ndarray:
+    """Every field of ``p`` (gravity's three components in place) as one float vector: the exact
+    key of a complete parameter set in an evaluation log."""
+    return np.array([float(x) for f in dc_fields(p) for x in np.ravel(getattr(p, f.name))])
+
+
+class LoggedScores:
+    """Complete parameter sets scored on one objective (:meth:`ClothObjective.evaluate_params`),
+    each simulation's score, success and per-start errors logged as it finishes.
+
+    The checkpoint of the stages that score given parameter sets (``score_cloth_twin``,
+    ``skirt_cloth``): an :class:`~vidsim.optim.cache.EvalCache` keyed by the set's exact values
+    (:func:`params_key`) whose context is the objective's fingerprint (footage, model, features,
+    metric, simulator and source digest), as the fits' logs are. A killed stage, run again,
+    replays every set already scored without simulating, so its output is the uninterrupted run's
+    bit for bit; a log written for another objective is moved aside, not replayed.
+
+    Args:
+        obj: the objective.
+        path: the JSONL log (None: in memory only, nothing kept across runs).
+    """
+
+    def __init__(self, obj: ClothObjective, path: str | Path | None = None) -> None:
+        from vidsim.optim.cache import EvalCache
+
+        self.obj = obj
+        self.space = obj.space
+        self.cache = EvalCache(lambda x: None, path, context=obj.fingerprint() if path is not None else None)
+
+    def evaluate_params(self, params: ClothParams, keep: bool = False):
+        """:meth:`ClothObjective.evaluate_params` through the log: a :class:`CellScore`, or with
+        ``keep`` the simulation's full :class:`~vidsim.clothfit.objective.EvalResult` (images and
+        positions are not logged, so a kept set is simulated again even when it was logged: the
+        same score, deterministic)."""
+        from vidsim.optim.cache import point_key
+
+        x = params_key(params)
+        key = point_key(x)
+        if keep and key in self.cache.store:
+            return self.obj.evaluate_params(params, keep=True)
+        full = []
+
+        def run(_x: np.ndarray) -> tuple[float, dict]:
+            r = self.obj.evaluate_params(params, keep=keep)
+            full.append(r)
+            return float(r.score), {"ok": bool(r.ok), "failure": r.failure,
+                                    "members": [[float(e) for e in m] for m in r.members]}
+
+        self.cache.fn = run
+        f = self.cache(x)
+        if keep and full:
+            return full[0]
+        info = self.cache.store[key][1]
+        return CellScore(f, bool(info.get("ok", False)), info.get("failure"), info.get("members", []))
+
+    def close(self) -> None:
+        self.cache.close()
+
+
 def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictConfig, names: list[str],
-                  what: str, keep_diagonal: bool = False, members: list | None = None) -> tuple[np.ndarray, list]:
+                  what: str, keep_diagonal: bool = False, members: list | None = None,
+                  checkpoint: str | Path | None = None) -> tuple[np.ndarray, list]:
     """Error of every parameter set (rows) on every footage folder (columns), seed Figure 8.
 
     Each set is simulated as it is (its own density: "fleece simulated against satin footage").
@@ -205,6 +278,9 @@ def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictCo
     Args:
         members: if given, a list that receives per cell ``members[i][j]`` the errors of the
             objective's ensemble starts (a skirt's fold-seeded starts; one entry for a swatch).
+        checkpoint: a folder for the cells' logs (:class:`LoggedScores`, one per footage column,
+            ``column<j>.jsonl``): a killed run resumes at the first cell not logged (the kept
+            diagonal cells, whose images are returned, are simulated again). None: no log.
 
     Returns:
         ``(E, diagonal)``: the (sets, footage) matrix and, with ``keep_diagonal``, per footage
@@ -220,15 +296,18 @@ def fabric_matrix(footage: list[str], param_sets: list[ClothParams], cfg: DictCo
             tr, frames = load_trial(f, cfg, with_frames=True)
         else:
             tr, frames = load_trial(f, cfg), None
-        obj = make_objective([tr], cfg)
-        for i, p in enumerate(param_sets):
-            r = obj.evaluate_params(p, keep=keep_diagonal and i == j)
-            E[i, j] = r.score
-            if members is not None:
-                members[i][j] = list(r.members[0]) if r.ok and r.members else []
-            if keep_diagonal and i == j:
-                diag.append((tr, frames, r))
-            prog.update(note=f"{names[i]} parameters on {names[j]} footage")
+        obj = LoggedScores(make_objective([tr], cfg), None if checkpoint is None else Path(checkpoint) / f"column{j}.jsonl")
+        try:
+            for i, p in enumerate(param_sets):
+                r = obj.evaluate_params(p, keep=keep_diagonal and i == j)
+                E[i, j] = r.score
+                if members is not None:
+                    members[i][j] = list(r.members[0]) if r.ok and r.members else []
+                if keep_diagonal and i == j:
+                    diag.append((tr, frames, r))
+                prog.update(note=f"{names[i]} parameters on {names[j]} footage")
+        finally:
+            obj.close()
     return E, diag
 
 

@@ -17,10 +17,18 @@ each column), ``skirt.yaml`` (matrix, wins, the model skirt's settings, and per 
 starts, ``won``/``lost`` when the mean paired difference is beyond 2 standard errors, else
 ``undecided``: the unknown initial fold pattern alone could turn the column), per fabric ``side_by_side_<fabric>.mp4`` (footage |
 simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
+
+Checkpoint: every matrix cell's score and per-start errors are logged as they finish to
+``.skirt_cloth.checkpoint/column<j>.jsonl`` in the output folder (:class:`vidsim.cli.cloth_common.LoggedScores`,
+keyed by the parameter set's exact values, each column's log fingerprinted by its footage and
+settings); a killed stage, run again, replays the logged cells and writes what an uninterrupted run
+writes (the diagonal cells are simulated again: their images make the videos). The folder is removed
+once ``skirt.yaml`` is written.
 """
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -47,7 +55,11 @@ def run(cfg: DictConfig) -> None:
     sk = cfg.cloth.skirt
     fabrics, pfiles, footage, sets = fabric_sets(cfg.cloth.skirt, "cloth.skirt")
     cells: list = []
-    E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True, members=cells)
+    ckpt = out / ".skirt_cloth.checkpoint"  # the cells' logs; removed once skirt.yaml is written
+    if ckpt.is_dir():
+        print(f"skirt_cloth: resuming from {ckpt} (cells already scored are replayed, not simulated)", flush=True)
+    E, diag = fabric_matrix(footage, sets, cfg, fabrics, "skirt_cloth", keep_diagonal=True, members=cells,
+                            checkpoint=ckpt)
     n = len(fabrics)
     wins = diagonal_wins(E)
     members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
@@ -88,6 +100,7 @@ def run(cfg: DictConfig) -> None:
                                               "rest_bend": str(sk.model_rest_bend), "fold_members": members,
                                               "fold_amplitude_m": float(sk.model_fold_amplitude),
                                               "fold_seed": int(sk.model_fold_seed)}})
+    shutil.rmtree(ckpt, ignore_errors=True)
     print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}" + (f"; {note}" if note else ""), flush=True)
 
 

@@ -18,18 +18,32 @@ few per cent (docs/cloth_study.md), so the stage also scores ``cloth.twin.pertur
 the true parameters scaled by exp(N(0, ``perturb_sigma``)) and reports their ratios' quantiles
 (``heldout.truth_scale``) and whether the estimate's ratio is within their 90 % point, beside the
 issue's fixed 1.10. Writes ``score.yaml``, ``errors.csv`` and ``errors.png``.
+
+Checkpoint: every simulation (estimate, truth, each perturbed draw) is logged as it finishes to
+``.score_cloth_twin.checkpoint/evals.jsonl`` in the output folder (:class:`vidsim.cli.cloth_common.LoggedScores`:
+keyed by the parameter set's exact values, fingerprinted by the footage and settings); a killed
+stage, run again, replays them and writes what an uninterrupted run writes. The folder (with any
+log of other inputs moved aside there) is removed once ``score.yaml`` is written.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import shutil
 from pathlib import Path
 
 import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_from_dict, read_selected
+from vidsim.cli.cloth_common import (
+    ClothStageError,
+    LoggedScores,
+    load_trial,
+    make_objective,
+    params_from_dict,
+    read_selected,
+)
 from vidsim.cloth import ESTIMATED_NAMES
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.io.footage import load_yaml, read_truth
@@ -53,7 +67,20 @@ def run(cfg: DictConfig) -> None:
     prof = load_yaml(tc.profile, ClothStageError, "profile.yaml", mapping=True).get("profiles", {}) if tc.profile else {}
     est = params_from_dict(sel["params"], str(tc.params))
     true = params_from_dict(truth["params"], f"truth of {tc.footage}")
-    obj = make_objective([load_trial(tc.footage, cfg)], cfg)
+    ckpt = out / ".score_cloth_twin.checkpoint"  # every simulation of this stage; removed once score.yaml is written
+    if (ckpt / "evals.jsonl").is_file():
+        print(f"score_cloth_twin: resuming from {ckpt} (simulations already run are replayed)", flush=True)
+    obj = LoggedScores(make_objective([load_trial(tc.footage, cfg)], cfg), ckpt / "evals.jsonl")
+    try:
+        _score(cfg, out, obj, est, true, truth, prof)
+    finally:
+        obj.close()
+    shutil.rmtree(ckpt, ignore_errors=True)
+
+
+def _score(cfg: DictConfig, out: Path, obj: LoggedScores, est, true, truth: dict, prof: dict) -> None:
+    """The stage's scoring and outputs (``obj``: the logged objective of the held-out footage)."""
+    tc = cfg.cloth.twin
     e_est = float(obj.evaluate_params(est).score)
     res_true = obj.evaluate_params(true)
     e_true = float(res_true.score)

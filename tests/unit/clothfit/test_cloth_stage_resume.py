@@ -1,0 +1,152 @@
+"""score_cloth_twin and skirt_cloth resume within a run: every simulation is logged as it finishes
+(:class:`vidsim.cli.cloth_common.LoggedScores`, the fits' evaluation-log mechanism); a run killed
+partway and run again writes the uninterrupted run's outputs bit for bit and simulates only what
+was not logged; a changed setting does not replay the old scores.
+
+The footage is filmed in memory (a twin swatch, 14 frames at the tests' smallest settings) and
+handed to the stages through ``load_trial``: the stages' own reading of footage folders is tested
+in tests/integration/test_cloth_study_stages.py.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import yaml
+from omegaconf import OmegaConf
+
+import vidsim.cli.cloth_common as common
+import vidsim.cli.cloth_skirt as skirt_stage
+import vidsim.cli.cloth_twin_score as twin_stage
+from vidsim.cli.cloth_common import params_dict
+from vidsim.cloth import ClothParams
+from vidsim.clothfit.features import FeatureSettings, extract_features
+from vidsim.clothfit.film import FilmSettings, film_cloth, twin_swatch
+from vidsim.clothfit.objective import ClothObjective, Trial
+from vidsim.config import CONF_DIR, camera_from_config, projector_from_config
+from vidsim.config.cloth import ClothConfig
+from vidsim.reality.cloth import corner_paths, swatch_motion
+from vidsim.render.projector import Projector
+
+SOFT = ClothParams(bend=3e-6, stretch=300.0, shear=40.0, bend_damping=3e-8, stretch_damping=3e-3,
+                   shear_damping=3e-3, drag_linear=0.4, drag_quad=0.8, drag_degrade=0.2, density=0.2)
+STIFF = dataclasses.replace(SOFT, bend=9e-5, stretch=3000.0)
+MODEL = ["cloth.model.resolution=7", "cloth.model.settle_s=0.4", "cloth.fit.estimate=[stretch,drag_quad]",
+         "log.rerun=false", "log.progress=false"]
+
+
+def _film(params: ClothParams, motion: str, name: str) -> tuple[Trial, np.ndarray]:
+    cfg = OmegaConf.structured(ClothConfig())
+    cam = camera_from_config(cfg.camera)
+    proj = Projector(projector_from_config(cfg.projector), period_px=cfg.projector.period_px,
+                     power=cfg.projector.power, ambient=cfg.projector.ambient)
+    mot = swatch_motion(motion)
+    V, F, cp, ok, failure = twin_swatch(params, lambda t: corner_paths(mot, t), n_frames=14, fps=30.0, resolution=9,
+                                        settle_s=0.4)
+    assert ok, failure
+    frames = film_cloth(V, F, cam, proj, np.random.default_rng(3), FilmSettings(n_background=4))
+    feat = extract_features(frames, np.arange(4), FeatureSettings())
+    return Trial(name, feat, np.arange(14) / 30.0, cp, cam, proj, 0.3, params.density), frames[4:]
+
+
+@pytest.fixture(scope="module")
+def footage():
+    return {"soft": _film(SOFT, "exp1", "soft"), "stiff": _film(STIFF, "robot", "stiff")}
+
+
+@pytest.fixture
+def sims(monkeypatch, footage):
+    """Serve the filmed trials as footage folders; count the simulations; kill the stage at a given one."""
+    state = {"n": 0, "kill_at": None}
+
+    def load_trial(folder, cfg, name=None, with_frames=False):
+        tr, frames = footage[str(folder).rsplit("/", 1)[-1]]
+        return (tr, frames) if with_frames else tr
+
+    real = ClothObjective.evaluate_params
+
+    def counted(self, params, keep=False):
+        if state["kill_at"] is not None and state["n"] == state["kill_at"]:
+            raise KeyboardInterrupt("killed")
+        state["n"] += 1
+        return real(self, params, keep)
+
+    monkeypatch.setattr(common, "load_trial", load_trial)
+    monkeypatch.setattr(twin_stage, "load_trial", load_trial)
+    monkeypatch.setattr(ClothObjective, "evaluate_params", counted)
+    monkeypatch.setattr(skirt_stage, "_tris", lambda tr, cfg: np.zeros((0, 3), int))
+    return state
+
+
+def _cfg(*overrides: str):
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=[*MODEL, *overrides])
+
+
+def _run_killed(run, cfg, sims, at: int) -> None:
+    sims["n"], sims["kill_at"] = 0, at
+    with pytest.raises(KeyboardInterrupt):
+        run(cfg)
+    sims["n"], sims["kill_at"] = 0, None
+
+
+def test_twin_score_resumes_bit_identical_and_recomputes_after_a_setting_change(tmp_path, sims):
+    est = tmp_path / "params.yaml"
+    est.write_text(yaml.safe_dump({"params": params_dict(dataclasses.replace(SOFT, stretch=330.0, drag_quad=0.7))}))
+    twin_stage.read_truth = lambda folder: {"kind": "twin", "params": params_dict(SOFT)}
+    try:
+        args = [f"paths.results={tmp_path}", f"cloth.twin.params={est}", "cloth.twin.profile=",
+                f"cloth.twin.footage={tmp_path / 'soft'}", "cloth.twin.perturb_draws=4"]
+        whole = tmp_path / "whole"
+        twin_stage.run(_cfg(*args, f"paths.out={whole}"))
+        assert sims["n"] == 6  # estimate, truth, 4 perturbed truths
+        assert not (whole / ".score_cloth_twin.checkpoint").exists()
+        out = tmp_path / "resumed"
+        _run_killed(twin_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=4)
+        log = out / ".score_cloth_twin.checkpoint" / "evals.jsonl"
+        assert len(log.read_text().splitlines()) == 1 + 4  # the context line and the 4 finished simulations
+        twin_stage.run(_cfg(*args, f"paths.out={out}"))
+        assert sims["n"] == 2  # only the two draws not logged
+        for f in ("score.yaml", "errors.csv"):
+            assert (out / f).read_bytes() == (whole / f).read_bytes()
+        assert not (out / ".score_cloth_twin.checkpoint").exists()
+        # killed again, then rerun with another metric weight: the log is of another objective, not replayed
+        _run_killed(twin_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)
+        twin_stage.run(_cfg(*args, f"paths.out={out}", "cloth.fit.alpha=0.2"))
+        assert sims["n"] == 6
+        changed = yaml.safe_load((out / "score.yaml").read_text())["heldout"]
+        assert changed["error_selected"] != yaml.safe_load((whole / "score.yaml").read_text())["heldout"]["error_selected"]
+    finally:
+        del twin_stage.read_truth  # back to the module's import
+
+
+def test_skirt_matrix_resumes_bit_identical_and_recomputes_after_a_setting_change(tmp_path, sims):
+    files = []
+    for name, p in (("soft", SOFT), ("stiff", STIFF)):
+        (tmp_path / f"{name}.yaml").write_text(yaml.safe_dump({"params": params_dict(p)}))
+        files.append(str(tmp_path / f"{name}.yaml"))
+    args = [f"paths.results={tmp_path}", "cloth.skirt.fabrics=[soft,stiff]", f"cloth.skirt.params=[{','.join(files)}]",
+            f"cloth.skirt.footage=[{tmp_path / 'soft'},{tmp_path / 'stiff'}]", "cloth.skirt.fps=30"]
+    whole = tmp_path / "whole"
+    skirt_stage.run(_cfg(*args, f"paths.out={whole}"))
+    assert sims["n"] == 4
+    doc = yaml.safe_load((whole / "skirt.yaml").read_text())
+    assert doc["diagonal_wins"] == 2, doc["matrix"]  # each twin's truth explains its own footage best
+    assert not (whole / ".skirt_cloth.checkpoint").exists()
+    out = tmp_path / "resumed"
+    _run_killed(skirt_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)  # the second column's diagonal unfinished
+    skirt_stage.run(_cfg(*args, f"paths.out={out}"))
+    # the first column's two cells replayed except its diagonal (its images make the video), the
+    # second column's first cell replayed: 1 + 1 (the second diagonal) simulated
+    assert sims["n"] == 2
+    for f in ("skirt.yaml", "matrix.csv"):
+        assert (out / f).read_bytes() == (whole / f).read_bytes()
+    assert not (out / ".skirt_cloth.checkpoint").exists()
+    _run_killed(skirt_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)
+    skirt_stage.run(_cfg(*args, f"paths.out={out}", "cloth.fit.alpha=0.2"))
+    assert sims["n"] == 4  # every cell again: the logs were written for another objective
+    assert yaml.safe_load((out / "skirt.yaml").read_text())["matrix"] != doc["matrix"]
