@@ -7,7 +7,8 @@ paths.out=results/posterior/rigid/throw101``
 Writes ``summary.csv`` (point estimate, 5/50/95 % and sd per parameter, angles in degrees),
 ``posterior.yaml`` (diagnostics: autocorrelation times, ``converged``, ESS, noise model,
 multimodality flag, correlations), ``corner.png``, ``correlation.png``, ``chain.npz`` (resumable:
-a killed run continues from its last checkpoint) and ``posterior.rrd`` (footage with the observed
+a killed run continues from its last checkpoint, and replays its start refit and noise calibration
+from ``calibration.jsonl`` beside it in the staging folder, removed when the run finishes) and ``posterior.rrd`` (footage with the observed
 silhouette and the fraction of posterior draws covering each pixel; per-frame mismatch at the mode
 as scalars). Never reads truth.
 """
@@ -95,7 +96,7 @@ def run(cfg: DictConfig) -> None:
 
         post = rigid_posterior(obs, fit.times, cam, body, fit.params, fit.q0, fit.t0, alts, noise, prior, scfg,
                                str(tmp / "chain.npz"), on_chunk, rc.distinct_deg, rc.multimodal_ratio,
-                               gravity=gravity, discrepancy=disc)
+                               gravity=gravity, discrepancy=disc, calibration_path=str(tmp / "calibration.jsonl"))
         diag = post.diagnostics()
         # per frame: footage, observed silhouette, fraction of posterior draws covering each pixel
         S = post.samples(natural=False)
@@ -133,6 +134,7 @@ def run(cfg: DictConfig) -> None:
                                            ("multimodal", bool(diag.get("multimodal")))) if bad)
         save_figure(corner_figure(post.samples(), post.names, post.units, nat_point, flags=warn), tmp / "corner.png")
         save_figure(correlation_figure(post.corr, post.names), tmp / "correlation.png")
+    (tmp / "calibration.jsonl").unlink(missing_ok=True)  # a checkpoint, not an output
     replace_dir(tmp, out)
     print(f"posterior_rigid: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "
           f"ESS {diag['ess']:.0f}, multimodal {diag['multimodal']}, {diag['seconds']:.0f} s")

@@ -327,6 +327,41 @@ class NoiseModel:
                 "holdout_inflation": float(self.inflation)}
 
 
+def calibrate_logged(masks: np.ndarray, loss: FrameLoss, p_fit: np.ndarray, noise: NoiseConfig,
+                     disc: DiscrepancyConfig, seed: int, path: str | None = None, context: str | None = None
+                     ) -> tuple[np.ndarray, NoiseModel]:
+    """The posterior's start and noise calibration: ``(p_start, noise model)``, where ``p_start`` is
+    the fit refitted with the nuisance effects free (:func:`refit_discrepancy`; ``p_fit`` without
+    effects) and the model is :func:`calibrate_noise` around it (its design drawn from ``seed``).
+
+    With ``path`` the result is logged as one record of an :class:`~vidsim.optim.cache.EvalCache`
+    whose ``context`` fingerprints every input (the caller's :func:`rigid_posterior` does): a
+    resumed run (its chain killed while sampling) replays it instead of recomputing its
+    ``n_design * (design_iters + 1)`` simulations, bit for bit (floats round-trip exactly through
+    the log); a log of other inputs is moved aside. A run killed during the calibration computes it
+    again.
+    """
+    from dataclasses import fields
+
+    from vidsim.optim.cache import EvalCache, point_key
+
+    def run(_u: np.ndarray) -> tuple[float, dict]:
+        p_start = refit_discrepancy(masks, loss, p_fit, disc) if disc.effects else p_fit
+        nm = calibrate_noise(loss, p_start, noise, np.random.default_rng(seed))
+        return 0.0, {"p_start": p_start, "noise": {f.name: getattr(nm, f.name) for f in fields(nm)}}
+
+    u = np.asarray(p_fit, float)
+    with EvalCache(run, path, context) as log:
+        log(u)
+        info = log.store[point_key(u)][1]
+    if "noise" not in info:  # the calibration raised a floating-point error (EvalCache's failed score)
+        raise PosteriorError(f"noise calibration failed: {info.get('failure', 'floating-point error')}")
+    rec = info["noise"]
+    nm = NoiseModel(**{f.name: (np.asarray(rec[f.name], float) if f.type in ("np.ndarray", np.ndarray) else rec[f.name])
+                       for f in fields(NoiseModel)})
+    return np.asarray(info["p_start"], float), nm
+
+
 def _quad_features(z: np.ndarray) -> np.ndarray:
     n, D = z.shape
     iu = np.triu_indices(D)
@@ -650,7 +685,8 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
                     sampler: SamplerConfig | None = None, chain_path: str | None = None,
                     progress=None, distinct_deg: float = 10.0, multimodal_ratio: float = 0.01,
                     hmax: float = 1.0 / 60.0, gravity: float = G_EARTH,
-                    discrepancy: DiscrepancyConfig | None = None) -> RigidPosterior:
+                    discrepancy: DiscrepancyConfig | None = None, calibration_path: str | None = None
+                    ) -> RigidPosterior:
     """Sample the posterior of a fitted throw.
 
     Args:
@@ -668,6 +704,9 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
         multimodal_ratio: an alternative whose density is above this fraction of the mode's is a mode.
         hmax: RK4 step bound, s; gravity: known gravity magnitude, m/s^2.
         discrepancy: nuisance effects sampled with the 14 parameters (default: none).
+        calibration_path: log of the start refit and noise calibration (:func:`calibrate_logged`,
+            fingerprinted by every input here and the package's source digest), replayed when a run
+            is resumed; None: computed every time.
 
     Returns:
         :class:`RigidPosterior` (with a discrepancy, the 14 parameters' summaries are marginal over
@@ -697,8 +736,15 @@ def rigid_posterior(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bo
     q_base = q_base / np.linalg.norm(q_base)
     loss = FrameLoss(body, cam, times, masks, t0, q_base, hmax, gravity, tuple(disc.effects))
     bounds = disc.bounds()
-    p_start = refit_discrepancy(masks, loss, p_fit, disc) if disc.effects else p_fit
-    nm = calibrate_noise(loss, p_start, noise, np.random.default_rng(sampler.seed))
+    context = None
+    if calibration_path is not None:
+        import vidsim
+        from vidsim.optim.cache import fingerprint
+
+        context = fingerprint("rigid_posterior.calibration", np.packbits(masks), masks.shape, times, cam, body, p_fit,
+                              q_base, float(t0), float(hmax), float(gravity), noise, disc, int(sampler.seed),
+                              vidsim.SOURCE_DIGEST)
+    p_start, nm = calibrate_logged(masks, loss, p_fit, noise, disc, int(sampler.seed), calibration_path, context)
     logp = RigidLogPosterior(loss, nm, p_fit, prior, bounds)
     start = nm.center.copy()
     if disc.effects:  # the walkers' ball must start inside the nuisance prior (a mode may sit below 0)

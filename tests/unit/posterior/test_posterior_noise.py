@@ -166,3 +166,31 @@ def test_sandwich_intervals_cover_at_the_throws_frame_count(rng) -> None:
         hits.append(np.abs(nm.center) / np.sqrt(np.diag(nm.cov)) <= 1.6449)
     cov = float(np.mean(hits))
     assert 0.84 < cov < 0.95, cov
+
+
+def test_logged_calibration_is_replayed_bit_for_bit_and_recomputed_for_other_inputs(rng, tmp_path) -> None:
+    """posterior_rigid's resume: the noise calibration is logged once and replayed (no simulation)
+    with every array equal to the bit; a log of another context is not replayed."""
+    from dataclasses import fields
+
+    from vidsim.posterior.rigid import DiscrepancyConfig, calibrate_logged
+
+    loss = LinearFrames(rng, 200, 1.0)
+    masks = np.zeros((200, 2, 2), bool)
+    cfg = NoiseConfig(n_design=200, design_iters=1)
+    log = tmp_path / "calibration.jsonl"
+    p0, nm0 = calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-a")
+    n = loss.n_evals
+    assert n > 400
+    p1, nm1 = calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-a")
+    assert loss.n_evals == n  # replayed: nothing simulated
+    assert np.array_equal(p0, p1)
+    for f in fields(nm0):
+        a, b = getattr(nm0, f.name), getattr(nm1, f.name)
+        assert (np.array_equal(a, b) and a.dtype == b.dtype) if isinstance(a, np.ndarray) else (a == b and type(a) is type(b))
+    # the same calibration without a log: equal to the logged one
+    _, nm2 = calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7)
+    assert nm2.w == nm0.w and np.array_equal(nm2.cov, nm0.cov)
+    n = loss.n_evals
+    calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-b")
+    assert loss.n_evals > n and (tmp_path / "calibration.stale-1.jsonl").is_file()
