@@ -83,6 +83,8 @@ def test_twin_select_profile_score_and_method_comparison(study):
     assert pdoc["chosen"].startswith("polish(") == pdoc["polish"]["improved"]
     assert len((pol / "polish_evals.jsonl").read_text().splitlines()) >= 6
     assert pdoc["params"] == first["params"] and pdoc["total"] == first["total"]  # replayed, not re-drawn
+    # its simulations: the distinct joint points (6 at most) on both trials, and the improved set's
+    assert 0 < pdoc["trial_simulations"]["polish"] <= 2 * (6 + 1) and pdoc["trial_simulations"] == first["trial_simulations"]
     joint = res / "cloth" / "fit_joint" / "twin"
     out = _run("vidsim.cli.cloth_fit", *base, f"cloth.fit.footage=[{fp['exp1']},{fp['exp2']}]", f"paths.out={joint}")
     assert "cloth_twin_exp1+cloth_twin_exp2" in out
@@ -148,8 +150,17 @@ def test_twin_select_profile_score_and_method_comparison(study):
          f"cloth.compare.joint=[{joint / 'fit.yaml'}]", f"cloth.compare.anneal_traces=[{tr('fit')}]",
          f"cloth.compare.cmaes_traces=[{tr('fit_cmaes')}]", f"cloth.compare.joint_traces=[{joint / 'trace.csv'}]")
     cdoc = yaml.safe_load((cmp_ / "compare.yaml").read_text())
-    # equal budgets in trial simulations: 2 trials x (grid 3 + 4) per method
-    assert cdoc["trial_simulations"] == {"anneal": [14], "cmaes": [14], "joint": [14]}
+    # budgets in true trial simulations: the fits' simulated trace rows (2 trials x (grid 3 + 4) rows
+    # each, the cache's answers not counted) plus, per trial, the selection's candidates on both trials
+    def _sims(path):
+        return sum(int(r.split(",")[4]) for r in path.read_text().splitlines()[1:])
+
+    for meth, d, s_ in (("anneal", "fit", "select"), ("cmaes", "fit_cmaes", "select_cmaes")):
+        fit_sims = sum(_sims(res / "cloth" / d / f"twin_{t}" / "trace.csv") for t in ("exp1", "exp2"))
+        sdoc_ = yaml.safe_load((res / "cloth" / s_ / "twin" / "params.yaml").read_text())
+        assert sdoc_["trial_simulations"] == {"selection": 2 * len(sdoc_["rows"]), "polish": 0}
+        assert 2 * 3 < fit_sims <= 14 and cdoc["trial_simulations"][meth] == [fit_sims + 2 * len(sdoc_["rows"])]
+    assert cdoc["trial_simulations"]["joint"] == [2 * _sims(joint / "trace.csv")]
     # the best method is the one with the least held-out error (compare.csv: fabric, heldout_<method> ...)
     rows = [r.split(",") for r in (cmp_ / "compare.csv").read_text().splitlines()]
     head, twin_row = rows[0], next(r for r in rows[1:] if r[0] == "twin")

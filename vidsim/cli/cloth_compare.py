@@ -12,7 +12,10 @@ Inputs (Snakemake fills them, one entry per fabric in order): ``heldout`` footag
 ``anneal``/``cmaes`` selected ``params.yaml``, ``joint`` ``fit.yaml``; and the fits' ``trace.csv``
 files (``anneal_traces``/``cmaes_traces``: per fabric its trials in order; ``joint_traces``).
 Writes ``compare.csv`` / ``compare.yaml`` (held-out error per fabric and method, and the budget each
-used in trial simulations: a joint evaluation simulates every trial),
+used in trial simulations (:data:`SIMULATIONS_COUNTED`): true simulations only, a repeated point the
+fit's cache answered not counted (``trace.csv``'s ``simulated`` column), a joint evaluation counted
+once per trial, and for the per-trial methods the selection's simulations (every candidate on every
+trial, and a polish's, from ``params.yaml``'s ``trial_simulations``) included),
 ``heldout.png`` and ``curves.png`` (best error so far against evaluations, annealing vs CMA-ES).
 """
 
@@ -32,9 +35,16 @@ from vidsim.report.figures import save_figure
 
 METHODS = ("anneal", "joint", "cmaes")
 
+#: what ``trial_simulations`` counts (written beside it in compare.yaml)
+SIMULATIONS_COUNTED = ("simulations of one trial's footage each method made: its fits' distinct evaluated points (a "
+                       "point the fit's cache answered again is not a simulation; a joint evaluation simulates every "
+                       "trial) plus, for anneal and cmaes, the cross-trial selection's (every candidate on every "
+                       "trial) and its polish's; the held-out scoring here is not counted")
 
-def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """``(energy, best_so_far)`` columns of a fit's ``trace.csv`` (names a missing file)."""
+
+def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(energy, best_so_far, simulated)`` columns of a fit's ``trace.csv`` (names a missing file
+    or column; ``simulated`` is 1 where the evaluation simulated, 0 where the fit's cache answered)."""
     p = Path(path)
     if not p.is_file():
         raise ClothStageError(f"{p}: trace.csv is missing")
@@ -42,7 +52,26 @@ def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         rows = list(csv.DictReader(fh))
     if not rows or not {"energy", "best_so_far"} <= set(rows[0]):
         raise ClothStageError(f"{p}: expected columns energy and best_so_far")
-    return np.array([float(r["energy"]) for r in rows]), np.array([float(r["best_so_far"]) for r in rows])
+    if "simulated" not in rows[0]:
+        raise ClothStageError(f"{p}: column 'simulated' is missing (a trace written before 5 Dec 2026 counted the "
+                              "cache's answers as evaluations): rerun fit_cloth, which replays its evals.jsonl")
+    return (np.array([float(r["energy"]) for r in rows]), np.array([float(r["best_so_far"]) for r in rows]),
+            np.array([int(r["simulated"]) for r in rows]))
+
+
+def selection_simulations(doc: dict, where: str) -> int:
+    """Trial simulations a ``select_cloth`` output made (its ``trial_simulations``; in a file
+    written before they were recorded, every candidate row on every trial, when it had no polish)."""
+    sims = doc.get("trial_simulations")
+    if isinstance(sims, dict) and {"selection", "polish"} <= set(sims):
+        return int(sims["selection"]) + int(sims["polish"])
+    if doc.get("polish") is not None:
+        raise ClothStageError(f"{where}: field 'trial_simulations' is missing and the selection was polished: rerun "
+                              "select_cloth to count the polish's simulations")
+    rows = doc.get("rows")
+    if not isinstance(rows, list):
+        raise ClothStageError(f"{where}: fields 'trial_simulations' and 'rows' are missing (not a select_cloth output)")
+    return int(sum(len(r["errors"]) for r in rows))
 
 
 def run(cfg: DictConfig) -> None:
@@ -61,11 +90,16 @@ def run(cfg: DictConfig) -> None:
     for p in lists["joint"]:
         if not Path(p).is_file():
             raise ClothStageError(f"{p}: fit.yaml is missing")
-    sets = {
-        "anneal": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["anneal"]), lists["anneal"])],
-        "cmaes": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["cmaes"]), lists["cmaes"])],
-        "joint": [params_from_dict(d["params"], p) for d, p in zip(read_selected(lists["joint"]), lists["joint"])],
-    }
+    docs = {m: read_selected(lists[m]) for m in METHODS}
+    sets = {m: [params_from_dict(d["params"], p) for d, p in zip(docs[m], lists[m])] for m in METHODS}
+    traces = {"anneal": [read_trace(p) for p in cc.anneal_traces], "cmaes": [read_trace(p) for p in cc.cmaes_traces],
+              "joint": [read_trace(p) for p in cc.joint_traces]}
+    # budget in true trial simulations (SIMULATIONS_COUNTED), checked before the held-out simulations
+    fits = {m: [int(sum(traces[m][i * nt + k][2].sum() for k in range(nt))) for i in range(n)] for m in ("anneal", "cmaes")}
+    fits["joint"] = [nt * int(t[2].sum()) for t in traces["joint"]]
+    select = {m: [selection_simulations(d, p) for d, p in zip(docs[m], lists[m])] for m in ("anneal", "cmaes")}
+    select["joint"] = [0] * n
+    evals = {m: [fits[m][i] + select[m][i] for i in range(n)] for m in METHODS}
     E = np.zeros((n, len(METHODS)))
     prog = Progress(E.size, "compare_cloth held-out", enabled=cfg.log.progress)
     for i, f in enumerate(lists["heldout"]):
@@ -73,11 +107,6 @@ def run(cfg: DictConfig) -> None:
         for m, meth in enumerate(METHODS):
             E[i, m] = obj.evaluate_params(sets[meth][i]).score
             prog.update(note=f"{fabrics[i]} {meth}")
-    traces = {"anneal": [read_trace(p) for p in cc.anneal_traces], "cmaes": [read_trace(p) for p in cc.cmaes_traces],
-              "joint": [read_trace(p) for p in cc.joint_traces]}
-    # budget in trial simulations: a joint evaluation simulates every trial
-    evals = {m: [int(sum(len(traces[m][i * nt + k][0]) for k in range(nt))) for i in range(n)] for m in ("anneal", "cmaes")}
-    evals["joint"] = [nt * len(t[0]) for t in traces["joint"]]
     best = [METHODS[int(np.argmin(E[i]))] for i in range(n)]
     _figures(fabrics, E, traces, nt, out)  # the figures first, the tables last (a kill leaves no new table beside old figures)
     write_text(out / "compare.csv", "fabric," + ",".join(f"heldout_{m}" for m in METHODS) + "," +
@@ -86,6 +115,8 @@ def run(cfg: DictConfig) -> None:
                    ",".join(str(evals[m][i]) for m in METHODS) + f",{best[i]}\n" for i, fab in enumerate(fabrics)))
     write_yaml(out / "compare.yaml", {
         "fabrics": fabrics, "methods": list(METHODS), "heldout_error": E.tolist(), "trial_simulations": evals,
+        "trial_simulations_counted": SIMULATIONS_COUNTED,
+        "trial_simulations_parts": {m: {"fits": fits[m], "selection": select[m]} for m in METHODS},
         "best_on_heldout": dict(zip(fabrics, best)),
         "wins": {m: int(sum(b == m for b in best)) for m in METHODS}})
     print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best)), flush=True)
@@ -111,7 +142,7 @@ def _figures(fabrics: list[str], E: np.ndarray, traces: dict, nt: int, out: Path
     for i, (ax, fab) in enumerate(zip(axes[0], fabrics)):
         for k in range(nt):
             for meth, ls in (("anneal", "-"), ("cmaes", "--")):
-                _, b = traces[meth][i * nt + k]
+                b = traces[meth][i * nt + k][1]
                 ax.plot(np.arange(1, b.size + 1), b, ls, color=f"C{k}", label=f"{meth} trial {k + 1}")
         ax.set_yscale("log")
         ax.set_xlabel("evaluation (grid included)")

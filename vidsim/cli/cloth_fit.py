@@ -16,7 +16,8 @@ fingerprint (:meth:`vidsim.clothfit.objective.ClothObjective.fingerprint`): a re
 or settings changed moves the old log aside (``evals.stale-<k>.jsonl``) instead of replaying it,
 and a finished run leaves only its own evaluations in the log (an earlier run's, e.g. with
 another seed, go to ``evals.other-runs-<k>.jsonl``). Outputs: ``fit.yaml`` (best, start and the best distinct candidates for the cross-trial
-selection, from this run's evaluations only), ``trace.csv``, ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
+selection, from this run's evaluations only), ``trace.csv`` (per evaluation: phase, energy, best so far,
+and ``simulated``: 0 for a repeated point the cache answered), ``energy.png`` and ``cloth.rrd`` (footage, fitted mesh, simulated
 silhouette and angle maps, per-frame error and the energy curve).
 """
 
@@ -132,9 +133,10 @@ def run(cfg: DictConfig) -> None:
         "config": to_plain(cfg.cloth.fit),
     }
     vals = np.concatenate([res.grid_values, res.trace])
-    write_text(out / "trace.csv", "evaluation,phase,energy,best_so_far\n" + "".join(
-        f"{i},{'grid' if i < len(res.grid_values) else fc.method},{v:.6g},{b:.6g}\n"
-        for i, (v, b) in enumerate(zip(vals, res.best_trace))))
+    sim = simulated_flags(res.points)  # compare_cloth counts simulations by this column
+    write_text(out / "trace.csv", "evaluation,phase,energy,best_so_far,simulated\n" + "".join(
+        f"{i},{'grid' if i < len(res.grid_values) else fc.method},{v:.6g},{b:.6g},{s_}\n"
+        for i, (v, b, s_) in enumerate(zip(vals, res.best_trace, sim))))
     import matplotlib
 
     matplotlib.use("Agg")
@@ -172,6 +174,19 @@ def run(cfg: DictConfig) -> None:
     write_yaml(out / "fit.yaml", doc)
     print(f"fit_cloth {label}: best E = {res.score:.4g} after {res.n_evals} evaluations ({n_new} simulated, "
           f"{res.n_evals - n_new} replayed) in {t_fit:.1f} s", flush=True)
+
+
+def simulated_flags(points: np.ndarray) -> list[int]:
+    """Per evaluation of a fit (its unit-cube ``points`` in order): 1 for the first evaluation of a
+    point in the run (a simulation, made now or, in a resumed run, before the kill), 0 for a repeat
+    the evaluation cache answered (the annealing's start is the grid's best point, for one)."""
+    seen: set[str] = set()
+    out = []
+    for u in points:
+        k = point_key(u)
+        out.append(int(k not in seen))
+        seen.add(k)
+    return out
 
 
 main = stage_app("fit_cloth", run)

@@ -12,7 +12,9 @@ With ``cloth.select.polish_budget`` > 0 the chosen set is then polished on E1 + 
 over all trials at once, started at the selection; evaluations in ``polish_evals.jsonl``, resumed
 after a kill); ``params.yaml`` then holds the polished set when it lowers E1 + E2, with the
 selection under ``selected`` and the polish's record under ``polish`` (``table.csv`` gets a
-``polish`` row).
+``polish`` row). ``params.yaml``'s ``trial_simulations`` says how many trial simulations the stage
+made: ``selection`` (every candidate on every trial, its own included: simulated afresh) and
+``polish`` (its distinct joint evaluations times the trials, plus the improved set's evaluation).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from vidsim.cloth import ESTIMATED_NAMES
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log.progress import Progress
 from vidsim.optim.anneal import AnnealConfig, anneal
-from vidsim.optim.cache import EvalCache
+from vidsim.optim.cache import EvalCache, point_key
 from vidsim.io.footage import load_yaml
 
 
@@ -95,8 +97,11 @@ def run(cfg: DictConfig) -> None:
              ",".join(f"{e:.5g}" for e in es) + f",{sum(es):.5g},{int(j == best)}\n" for j, (lab, th, es) in enumerate(rows)]
     write_text(out / "table.csv", hdr + "".join(lines))
     extra = {"selected": selected, "polish": polish} if polish is not None else {}
+    # trial simulations this selection made (compare_cloth adds them to the fits' budgets): every
+    # candidate on every trial, and the polish's distinct joint evaluations, each simulating every trial
+    sims = {"selection": len(cands) * len(trials), "polish": 0 if polish is None else int(polish["trial_simulations"])}
     write_yaml(out / "params.yaml", {
-        **extra, "params": params_dict(params), "chosen": label, "errors": {tr.name: e for tr, e in zip(trials, errs)},
+        **extra, "params": params_dict(params), "trial_simulations": sims, "chosen": label, "errors": {tr.name: e for tr, e in zip(trials, errs)},
         "total": float(sum(errs)), "trials": [tr.name for tr in trials], "fits": fits,
         "start": docs[0].get("start", {}).get("params"),
         "per_fit_best": {tr.name: {"params": d["params"], "score": d["score"]} for tr, d in zip(trials, docs)},
@@ -138,8 +143,11 @@ def _polish(trials: list, cfg: DictConfig, theta0: np.ndarray, f_sel: float, out
     theta = joint.space.from_unit(res.best_u) if improved else np.asarray(theta0, float)
     params = joint.params(theta, trials[0].density)
     errs = list(joint.evaluate(theta).per_trial) if improved else list(errs0)
+    # distinct points (a repeat is the cache's answer), each simulating every trial, and the improved
+    # set's final evaluation
+    n_points = len({point_key(u) for u, _ in fc.history})
     rec = {"budget": budget, "total_before": float(f_sel), "total_after": float(sum(errs)), "improved": improved,
-           "seconds": time.perf_counter() - t}
+           "seconds": time.perf_counter() - t, "trial_simulations": len(trials) * (n_points + int(improved))}
     print(f"select_cloth: polish E1+E2 {f_sel:.4g} -> {sum(errs):.4g} ({budget} joint evaluations)", flush=True)
     return params, errs, rec
 

@@ -1,0 +1,96 @@
+"""compare_cloth's budget in trial simulations counts true simulations: a point a fit's evaluation
+cache answered again is not one (trace.csv's ``simulated`` column), the cross-trial selection's
+simulations (every candidate on every trial, and a polish's) are added to the per-trial methods, and
+a joint evaluation counts once per trial. Before 5 Dec 2026 (session 35) it counted trace rows (cache
+answers included) and left the selection out."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import yaml
+
+import vidsim.cli.cloth_compare as stage
+from vidsim.cli.cloth_common import ClothStageError
+from vidsim.cli.cloth_fit import simulated_flags
+from vidsim.clothfit.objective import space_from_config
+from vidsim.clothfit.study import fit
+from vidsim.config import CONF_DIR
+from vidsim.optim.cache import point_key
+
+P = {"bend": 1e-5, "stretch": 200.0, "shear": 30.0, "bend_damping": 3e-8, "stretch_damping": 3e-3,
+     "shear_damping": 3e-3, "drag_linear": 0.5, "drag_quad": 0.7, "drag_degrade": 0.2, "density": 0.2}
+
+
+class _Quadratic:
+    """A cheap objective on two parameters (a bowl in the unit cube), counting its simulations."""
+
+    def __init__(self):
+        self.space = space_from_config({"stretch": {"lo": 10.0, "hi": 3000.0, "log": True},
+                                        "drag_quad": {"lo": 0.1, "hi": 3.0, "log": True}})
+        self.n = 0
+
+    def __call__(self, u):
+        self.n += 1
+        return float(np.sum((np.asarray(u) - 0.3) ** 2)), {}
+
+
+def test_a_fits_trace_marks_the_cache_answers():
+    obj = _Quadratic()
+    res = fit(obj, grid_params=["stretch"], levels=3, budget=12, seed=0)
+    flags = simulated_flags(res.points)
+    assert len(flags) == res.n_evals == 3 + 12
+    assert sum(flags) == obj.n == len({point_key(u) for u in res.points})  # exactly the simulations made
+    assert flags[3] == 0  # the annealing starts at the grid's best point: answered by the cache
+
+
+def _trace(path, flags):
+    e = np.linspace(5.0, 1.0, len(flags))
+    path.write_text("evaluation,phase,energy,best_so_far,simulated\n" + "".join(
+        f"{i},anneal,{v:.6g},{v:.6g},{s}\n" for i, (v, s) in enumerate(zip(e, flags))))
+
+
+def _cfg(tmp_path, lists):
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose("config", overrides=[f"paths.results={tmp_path}", f"paths.out={tmp_path / 'compare'}",
+                                            "log.rerun=false", "log.progress=false", "cloth.compare.fabrics=[twin]",
+                                            *[f"cloth.compare.{k}=[{','.join(map(str, v))}]" for k, v in lists.items()]])
+
+
+def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatch):
+    monkeypatch.setattr(stage, "load_trial", lambda f, cfg: None)
+    monkeypatch.setattr(stage, "make_objective", lambda trials, cfg: SimpleNamespace(
+        evaluate_params=lambda p: SimpleNamespace(score=float(p.stretch))))
+    tr = {}
+    for m, flags in (("a1", [1, 1, 1, 0, 1, 1]), ("a2", [1, 1, 1, 0, 1, 0]), ("c1", [1] * 6), ("c2", [1, 1, 1, 1, 1, 0]),
+                     ("j", [1, 1, 1, 0, 1, 1])):
+        tr[m] = tmp_path / f"{m}.csv"
+        _trace(tr[m], flags)
+    rows = [{"candidate": f"t#{k}", "errors": {"exp1": 1.0, "exp2": 2.0}} for k in range(4)]
+    (tmp_path / "anneal.yaml").write_text(yaml.safe_dump({"params": P, "rows": rows,
+                                                          "trial_simulations": {"selection": 8, "polish": 14}}))
+    (tmp_path / "cmaes.yaml").write_text(yaml.safe_dump({"params": {**P, "stretch": 150.0}, "rows": rows}))  # older file
+    (tmp_path / "joint.yaml").write_text(yaml.safe_dump({"params": {**P, "stretch": 100.0}}))
+    lists = {"heldout": [tmp_path / "robot"], "anneal": [tmp_path / "anneal.yaml"], "cmaes": [tmp_path / "cmaes.yaml"],
+             "joint": [tmp_path / "joint.yaml"], "anneal_traces": [tr["a1"], tr["a2"]],
+             "cmaes_traces": [tr["c1"], tr["c2"]], "joint_traces": [tr["j"]]}
+    stage.run(_cfg(tmp_path, lists))
+    doc = yaml.safe_load((tmp_path / "compare" / "compare.yaml").read_text())
+    # anneal: 5 + 4 simulated trace rows, 8 selection and 14 polish simulations; cmaes: 6 + 5 and the
+    # 4 candidates x 2 trials of an older params.yaml (no polish); joint: 5 points x 2 trials
+    assert doc["trial_simulations"] == {"anneal": [31], "joint": [10], "cmaes": [19]}
+    assert doc["trial_simulations_parts"]["anneal"] == {"fits": [9], "selection": [22]}
+    assert "cache" in doc["trial_simulations_counted"] and "selection" in doc["trial_simulations_counted"]
+    csv_row = (tmp_path / "compare" / "compare.csv").read_text().splitlines()[1].split(",")
+    assert csv_row[4:7] == ["31", "10", "19"] and csv_row[-1] == "joint"
+    # a trace from before the column, and a polished selection that did not record its simulations
+    (tmp_path / "old.csv").write_text("evaluation,phase,energy,best_so_far\n0,grid,1,1\n")
+    with pytest.raises(ClothStageError, match="old.csv: column 'simulated' is missing"):
+        stage.run(_cfg(tmp_path, {**lists, "joint_traces": [tmp_path / "old.csv"]}))
+    (tmp_path / "cmaes.yaml").write_text(yaml.safe_dump({"params": P, "rows": rows, "polish": {"budget": 6}}))
+    with pytest.raises(ClothStageError, match="cmaes.yaml: field 'trial_simulations' is missing"):
+        stage.run(_cfg(tmp_path, lists))
