@@ -16,8 +16,8 @@ import numpy as np
 
 from vidsim.fluid.edit import EditSpec, EditSpecError
 from vidsim.fluid.flow import FlowMethod, estimate_flow
-from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, patch_distance_ratio, relative_epe,
-                                  rendered_flow_epe_frames, static_flicker)
+from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, obstacle_grey, patch_distance_ratio,
+                                  relative_epe, rendered_flow_epe_frames, static_flicker)
 from vidsim.fluid.optimize import EditResult, edit_field
 from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
 
@@ -140,19 +140,22 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     undeclared = undeclared_obstacles(src_frames, flow, spec)
     for u in undeclared:
         warnings.warn(f"the footage has a dark, still region around node {tuple(u['center'])} ({u['nodes']} nodes, "
-                      f"radius ~{u['radius']}) with moving fluid around it that no obstacle of the edit covers: if it "
-                      "is a solid in the footage, declare it under 'obstacles' (docs/fluid_editing.md), or the edited "
-                      "field flows through it and the render paints it out", UndeclaredObstacleWarning, stacklevel=2)
+                      f"radius ~{u['radius']}) with moving fluid around it that no 'in_footage: true' obstacle of the "
+                      "edit covers: if it is a solid in the footage, declare it under 'obstacles' with in_footage: true "
+                      "(docs/fluid_editing.md), or the edited field flows through it and the render paints it out",
+                      UndeclaredObstacleWarning, stacklevel=2)
     step = max(1, g.shape[0] // 12)
     res: EditResult = edit_field(g.mean(0), spec, g[::step], resume=resume, on_iter=on_iter)
     ds = spec.downsample
     H, W = spec.height * ds, spec.width * ds
     field_px = upsample_field(res.field, ds, (H, W))
-    solid_px = cv2.resize(spec.solid_mask().astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+    solid_px, footage_px = (cv2.resize(spec.solid_mask(f).astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST)
+                            .astype(bool) for f in (None, True))
     field_px[solid_px] = 0.0
-    # the edit was optimised against the time-mean flow: match velocity patches on it too
+    # the edit was optimised against the time-mean flow: match velocity patches on it too; the
+    # obstacles in the footage show its own pixels
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
-                                match_flow=flow[:, :H, :W].mean(0), on_frame=on_frame)
+                                match_flow=flow[:, :H, :W].mean(0), footage_solid=footage_px, on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig, "undeclared_obstacles": undeclared}
     # streamlines end in their sink (the optimiser's figure); how many particles would get there
     # within the rendered clip, moving at the field's speed (frames = nodes / (nodes/frame))
@@ -168,6 +171,7 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
                                                                                     border)
     figs["patch_distance"] = patch_distance_ratio(out, src, rng=rng)
     figs["detail_ratio"] = detail_contrast(out) / max(detail_contrast(src), 1e-12)
+    figs.update(obstacle_grey(out, src, footage_px))
     # static flicker, output and source scored on ONE mask: pixels static in both (edited field and
     # time-median source flow < 0.1 px/frame), declared obstacles excluded (the renderer holds its
     # source frame there, so they cannot flicker; counting them flattered the output)
