@@ -67,7 +67,8 @@ def undeclared_obstacles(src_frames: np.ndarray, flow: np.ndarray, spec: EditSpe
       speed of the time-mean flow at least ``moving_around`` x its 90th percentile (dark still
       patches inside a background are ringed by more background: at most 0.05 on the example
       footages, against 0.39 around the PIV cylinder);
-    * at most half of it covered by declared obstacles.
+    * at most half of it covered by obstacles declared ``in_footage`` (an obstacle the edit adds
+      there would be drawn over the footage's solid, not show it).
 
     Returns:
         one dict per region: ``center`` [x, y] and equivalent ``radius`` (nodes), ``nodes``.
@@ -87,14 +88,14 @@ def undeclared_obstacles(src_frames: np.ndarray, flow: np.ndarray, spec: EditSpe
     if p90 <= 0 or c90 <= 0:
         return []
     lab, n = ndi.label((grey < dark * float(np.median(grey))) & (change < still * c90))
-    solid = spec.solid_mask()
+    solid, shown = spec.solid_mask(), spec.solid_mask(in_footage=True)
     found = []
     for k in range(1, n + 1):
         c = lab == k
         yy, xx = np.nonzero(c)
         if c.sum() < min_nodes or yy.min() == 0 or xx.min() == 0 or yy.max() == h - 1 or xx.max() == w - 1:
             continue
-        if (c & solid).sum() > 0.5 * c.sum():
+        if (c & shown).sum() > 0.5 * c.sum():
             continue
         ring = ndi.binary_dilation(c, iterations=6) & ~ndi.binary_dilation(c, iterations=2) & ~solid
         if not ring.any() or np.median(sp[ring]) < moving_around * p90:

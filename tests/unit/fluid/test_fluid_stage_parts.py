@@ -187,8 +187,11 @@ def test_undeclared_still_dark_region_is_reported_until_declared():
     found = undeclared_obstacles(frames, flow, EditSpec.from_dict(spec))
     print(found)
     assert len(found) == 1 and np.hypot(found[0]["center"][0] - 24, found[0]["center"][1] - 15) < 3
-    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5], "in_footage": True}]}
     assert undeclared_obstacles(frames, flow, EditSpec.from_dict(declared)) == []
+    # declared as an obstacle the edit adds, it would be drawn over, not shown: still reported
+    added = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(added)) == found
     # the edit warns and lists it in its figures
     from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit
 
