@@ -106,7 +106,7 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
             if "undeclared_obstacles" in s:
                 u = s["undeclared_obstacles"]
                 where = "; ".join(f"node ({c['center'][0]} {c['center'][1]}) r~{c['radius']}" for c in u)
-                rows.append(_row(item, "dark still regions ringed by moving fluid that no obstacle covers (heuristic "
+                rows.append(_row(item, "dark still regions ringed by moving fluid that no in_footage obstacle covers (heuristic "
                                  f"warning{': ' + where if u else ''})", float(len(u)), "", None))
             rows.append(_row(item, "render s/frame", s["render_s_per_frame"], "", None))
             rows.append(_row(item, "optimisation s", s["optimise_s"], "", None))
