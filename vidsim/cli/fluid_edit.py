@@ -225,8 +225,8 @@ def run(cfg: DictConfig) -> None:
     for u in undeclared:  # before the long part, one line each
         print(f"fluid_edit: WARNING: {ec.spec}: the footage has a dark, still region around node "
               f"({u['center'][0]}, {u['center'][1]}) ({u['nodes']} nodes, radius ~{u['radius']}) with moving fluid "
-              "around it that no obstacle covers; if it is a solid, declare it under 'obstacles' or the edit flows "
-              "through it", file=sys.stderr, flush=True)
+              "around it that no 'in_footage: true' obstacle covers; if it is a solid, declare it under 'obstacles' "
+              "with in_footage: true or the edit flows through it", file=sys.stderr, flush=True)
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
     key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
@@ -289,6 +289,8 @@ def run(cfg: DictConfig) -> None:
         "patch_coherence_ratio": float(figs["patch_distance"]["coherence_ratio"]),
         "patch_completeness_ratio": float(figs["patch_distance"]["completeness_ratio"]),
         "detail_ratio": float(figs["detail_ratio"]),
+        **{k: float(figs[k]) for k in ("footage_obstacle_grey_output", "footage_obstacle_grey_source",
+                                        "footage_obstacle_grey_diff_max")},
         "flicker_output": float(figs["flicker_output"]), "flicker_source": float(figs["flicker_source"]),
         "flicker_mc_output": float(figs["flicker_mc_output"]), "flicker_mc_source": float(figs["flicker_mc_source"]),
         "static_fraction": float(figs["static_fraction"]),

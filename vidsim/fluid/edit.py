@@ -80,11 +80,16 @@ class Source:
 
 @dataclass(frozen=True)
 class Obstacle:
-    """A collision object: a box ``[x0,y0,x1,y1]`` or an ellipse (center, radii); zero velocity."""
+    """A collision object: a box ``[x0,y0,x1,y1]`` or an ellipse (center, radii); zero velocity.
+    ``in_footage``: the solid is in the footage at this place (a PIV recording's cylinder), so the
+    render shows the footage's own pixels there and takes no fluid texture from it; otherwise it
+    is added by the edit and rendered from velocity-matched patches (solid texture if the footage
+    has an ``in_footage`` obstacle)."""
 
     box: Box | None = None
     center: tuple[float, float] | None = None
     radii: tuple[float, float] | None = None
+    in_footage: bool = False
 
 
 @dataclass(frozen=True)
@@ -262,15 +267,18 @@ class EditSpec:
         obstacles = []
         for i, o in enumerate(d.get("obstacles", []) or []):
             where = f"obstacles[{i}]"
-            _keys(o, where, {"box", "center", "radii"})
+            _keys(o, where, {"box", "center", "radii", "in_footage"})
+            inf = o.get("in_footage", False)
+            if not isinstance(inf, bool):
+                raise EditSpecError(f"{where}.in_footage={inf!r}, expected true or false")
             if "box" in o:
-                obstacles.append(Obstacle(box=_box(o["box"], f"{where}.box", h, w)))
+                obstacles.append(Obstacle(box=_box(o["box"], f"{where}.box", h, w), in_footage=inf))
             elif "center" in o and "radii" in o:
                 c = _vec(o["center"], f"{where}.center")
                 r = _vec(o["radii"], f"{where}.radii")
                 if not (0 <= c[0] < w and 0 <= c[1] < h) or min(r) <= 0:
                     raise EditSpecError(f"{where}: center {c} must lie inside the {w}x{h} grid and radii {r} be > 0")
-                obstacles.append(Obstacle(center=c, radii=r))
+                obstacles.append(Obstacle(center=c, radii=r, in_footage=inf))
             else:
                 raise EditSpecError(f"{where}: expected either 'box' or both 'center' and 'radii'")
         constraints = []
@@ -342,11 +350,14 @@ class EditSpec:
         spec._check_reachable()
         return spec
 
-    def solid_mask(self) -> np.ndarray:
-        """``(H, W)`` bool obstacle nodes."""
+    def solid_mask(self, in_footage: bool | None = None) -> np.ndarray:
+        """``(H, W)`` bool obstacle nodes; ``in_footage`` True/False: only the obstacles that are
+        / are not in the footage (None: all)."""
         solid = np.zeros((self.height, self.width), bool)
         yy, xx = np.mgrid[0:self.height, 0:self.width]
         for o in self.obstacles:
+            if in_footage is not None and o.in_footage != in_footage:
+                continue
             if o.box is not None:
                 x0, y0, x1, y1 = o.box
                 solid[y0:y1, x0:x1] = True

@@ -83,6 +83,10 @@ def _nn_dist(q: np.ndarray, db: np.ndarray, exclude: np.ndarray | None = None) -
 #: targets of the texture figures of a rendered edit (docs/fluid_editing.md, "Measured figures")
 PATCH_RATIO_MAX = 1.5
 DETAIL_RATIO_MIN = 0.8
+# grey levels: an obstacle in the footage is rendered as the per-pixel temporal median of the
+# source; its mean departs from the source's mean by the skew of the camera noise and passing
+# fluid and the uint8 rounding (0.05-0.1 on the example edits), well under 1
+OBSTACLE_GREY_TOL = 1.0
 
 
 def _patch_db(frames: np.ndarray, p: int, n_frames: int = 8) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -185,6 +189,20 @@ def static_flicker(out: np.ndarray, src: np.ndarray, field: np.ndarray, src_flow
             "flicker_source": flicker(src, st) if ok else float("nan"),
             "static_fraction": float(st.mean()), "static_fraction_output": float(st_out.mean()),
             "static_fraction_source": float(st_src.mean())}
+
+
+def obstacle_grey(out: np.ndarray, src: np.ndarray, mask: np.ndarray) -> dict[str, float]:
+    """Mean grey level inside the obstacles that are in the footage (``mask`` (H,W)), of the
+    output and of the source, over all their frames (NaN without such obstacles), and the
+    largest per-frame difference of the output's from the source's mean (grey levels)."""
+    m = np.asarray(mask, bool)
+    if not m.any():
+        return {"footage_obstacle_grey_output": float("nan"), "footage_obstacle_grey_source": float("nan"),
+                "footage_obstacle_grey_diff_max": float("nan")}
+    go = out[:, m].astype(np.float64).mean(-1).mean(-1)  # per frame
+    gs = src[:, m].astype(np.float64).mean(-1).mean(-1)
+    return {"footage_obstacle_grey_output": float(go.mean()), "footage_obstacle_grey_source": float(gs.mean()),
+            "footage_obstacle_grey_diff_max": float(np.abs(go - gs.mean()).max())}
 
 
 def detail_contrast(frames: np.ndarray) -> float:

@@ -16,8 +16,8 @@ import numpy as np
 
 from vidsim.fluid.edit import EditSpec, EditSpecError
 from vidsim.fluid.flow import FlowMethod, estimate_flow
-from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, patch_distance_ratio, relative_epe,
-                                  rendered_flow_epe_frames, static_flicker)
+from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, obstacle_grey, patch_distance_ratio,
+                                  relative_epe, rendered_flow_epe_frames, static_flicker)
 from vidsim.fluid.optimize import EditResult, edit_field
 from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
 
@@ -67,7 +67,8 @@ def undeclared_obstacles(src_frames: np.ndarray, flow: np.ndarray, spec: EditSpe
       speed of the time-mean flow at least ``moving_around`` x its 90th percentile (dark still
       patches inside a background are ringed by more background: at most 0.05 on the example
       footages, against 0.39 around the PIV cylinder);
-    * at most half of it covered by declared obstacles.
+    * at most half of it covered by obstacles declared ``in_footage`` (an obstacle the edit adds
+      there would be drawn over the footage's solid, not show it).
 
     Returns:
         one dict per region: ``center`` [x, y] and equivalent ``radius`` (nodes), ``nodes``.
@@ -87,14 +88,14 @@ def undeclared_obstacles(src_frames: np.ndarray, flow: np.ndarray, spec: EditSpe
     if p90 <= 0 or c90 <= 0:
         return []
     lab, n = ndi.label((grey < dark * float(np.median(grey))) & (change < still * c90))
-    solid = spec.solid_mask()
+    solid, shown = spec.solid_mask(), spec.solid_mask(in_footage=True)
     found = []
     for k in range(1, n + 1):
         c = lab == k
         yy, xx = np.nonzero(c)
         if c.sum() < min_nodes or yy.min() == 0 or xx.min() == 0 or yy.max() == h - 1 or xx.max() == w - 1:
             continue
-        if (c & solid).sum() > 0.5 * c.sum():
+        if (c & shown).sum() > 0.5 * c.sum():
             continue
         ring = ndi.binary_dilation(c, iterations=6) & ~ndi.binary_dilation(c, iterations=2) & ~solid
         if not ring.any() or np.median(sp[ring]) < moving_around * p90:
@@ -140,19 +141,22 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     undeclared = undeclared_obstacles(src_frames, flow, spec)
     for u in undeclared:
         warnings.warn(f"the footage has a dark, still region around node {tuple(u['center'])} ({u['nodes']} nodes, "
-                      f"radius ~{u['radius']}) with moving fluid around it that no obstacle of the edit covers: if it "
-                      "is a solid in the footage, declare it under 'obstacles' (docs/fluid_editing.md), or the edited "
-                      "field flows through it and the render paints it out", UndeclaredObstacleWarning, stacklevel=2)
+                      f"radius ~{u['radius']}) with moving fluid around it that no 'in_footage: true' obstacle of the "
+                      "edit covers: if it is a solid in the footage, declare it under 'obstacles' with in_footage: true "
+                      "(docs/fluid_editing.md), or the edited field flows through it and the render paints it out",
+                      UndeclaredObstacleWarning, stacklevel=2)
     step = max(1, g.shape[0] // 12)
     res: EditResult = edit_field(g.mean(0), spec, g[::step], resume=resume, on_iter=on_iter)
     ds = spec.downsample
     H, W = spec.height * ds, spec.width * ds
     field_px = upsample_field(res.field, ds, (H, W))
-    solid_px = cv2.resize(spec.solid_mask().astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST).astype(bool)
+    solid_px, footage_px = (cv2.resize(spec.solid_mask(f).astype(np.uint8), (W, H), interpolation=cv2.INTER_NEAREST)
+                            .astype(bool) for f in (None, True))
     field_px[solid_px] = 0.0
-    # the edit was optimised against the time-mean flow: match velocity patches on it too
+    # the edit was optimised against the time-mean flow: match velocity patches on it too; the
+    # obstacles in the footage show its own pixels
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
-                                match_flow=flow[:, :H, :W].mean(0), on_frame=on_frame)
+                                match_flow=flow[:, :H, :W].mean(0), footage_solid=footage_px, on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig, "undeclared_obstacles": undeclared}
     # streamlines end in their sink (the optimiser's figure); how many particles would get there
     # within the rendered clip, moving at the field's speed (frames = nodes / (nodes/frame))
@@ -168,6 +172,7 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
                                                                                     border)
     figs["patch_distance"] = patch_distance_ratio(out, src, rng=rng)
     figs["detail_ratio"] = detail_contrast(out) / max(detail_contrast(src), 1e-12)
+    figs.update(obstacle_grey(out, src, footage_px))
     # static flicker, output and source scored on ONE mask: pixels static in both (edited field and
     # time-median source flow < 0.1 px/frame), declared obstacles excluded (the renderer holds its
     # source frame there, so they cannot flicker; counting them flattered the output)

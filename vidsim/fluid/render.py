@@ -18,6 +18,14 @@ Sequence modes:
   temporal texture dynamics. Holes opened by divergence are filled by new patches
   (PATCHSELECT against the current output, faded in); crowded cells and patches whose source
   clip ends fade out. Patches centred on an obstacle (``solid``) hold their source frame.
+
+Obstacles that are in the footage at the same place (``footage_solid``, e.g. a PIV recording's
+cylinder) show the footage's own pixels: the per-pixel temporal median of the source, blended
+into the synthesised fluid over ``overlap`` px outside the obstacle's edge (:func:`obstacle_alpha`).
+No fluid patch takes texture from what that fill shows: the candidates touching it are left out
+of the fluid's pool, and a patch whose source window would drift onto it stops there and fades
+out. Obstacles the edit
+adds take their texture from windows centred in the footage's obstacles (solid texture).
 * ``"fixed"``: each output patch keeps its source window and plays the source forward in time
   (motion then equals the source motion at the matched patch).
 
@@ -249,6 +257,24 @@ def _bilinear_field(f: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return (f[i, j] * (1 - gx) + f[i, j + 1] * gx) * (1 - gy) + (f[i + 1, j] * (1 - gx) + f[i + 1, j + 1] * gx) * gy
 
 
+def obstacle_alpha(mask: np.ndarray, width: float) -> np.ndarray:
+    """Opacity ``(H, W)`` of an obstacle's fill: 1 on the mask (the declared solid shows only
+    the footage), outside a linear ramp to 0 over ``width`` px, ``1 - (d - 0.5) / width`` with
+    ``d`` the distance (px) of the pixel from the nearest mask pixel (no seam at the edge)."""
+    m = np.asarray(mask, bool)
+    if not m.any():
+        return np.zeros(m.shape)
+    d_out = cv2.distanceTransform((~m).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.where(m, 1.0, np.clip(1.0 - (d_out - 0.5) / max(float(width), 1.0), 0.0, 1.0))
+
+
+def _touches(integral: np.ndarray, y: np.ndarray, x: np.ndarray, p: int) -> np.ndarray:
+    """Whether the ``p x p`` windows with top-left (y, x) (ints, inside the frame) hold any set
+    pixel of the mask whose summed-area table (padded by one row and column) is ``integral``."""
+    y, x = np.asarray(y, int), np.asarray(x, int)
+    return (integral[y + p, x + p] - integral[y, x + p] - integral[y + p, x] + integral[y, x]) > 0
+
+
 @dataclass
 class _Patches:
     cx: np.ndarray
@@ -259,13 +285,15 @@ class _Patches:
     alpha: np.ndarray
     dalpha: np.ndarray
     age: np.ndarray
+    fluid: np.ndarray  # texture from the fluid's pool (must not drift onto the footage's obstacles)
 
     @classmethod
     def empty(cls) -> "_Patches":
         f = np.zeros(0)
-        return cls(f, f.copy(), np.zeros(0, np.int64), f.copy(), f.copy(), f.copy(), f.copy(), np.zeros(0, np.int64))
+        return cls(f, f.copy(), np.zeros(0, np.int64), f.copy(), f.copy(), f.copy(), f.copy(), np.zeros(0, np.int64),
+                   np.zeros(0, bool))
 
-    def append(self, cx, cy, ts, sx, sy, alpha, dalpha) -> None:
+    def append(self, cx, cy, ts, sx, sy, alpha, dalpha, fluid=True) -> None:
         self.cx = np.append(self.cx, cx)
         self.cy = np.append(self.cy, cy)
         self.ts = np.append(self.ts, np.int64(ts))
@@ -274,9 +302,10 @@ class _Patches:
         self.alpha = np.append(self.alpha, alpha)
         self.dalpha = np.append(self.dalpha, dalpha)
         self.age = np.append(self.age, 0)
+        self.fluid = np.append(self.fluid, bool(fluid))
 
     def keep(self, m: np.ndarray) -> None:
-        for k in ("cx", "cy", "ts", "sx", "sy", "alpha", "dalpha", "age"):
+        for k in ("cx", "cy", "ts", "sx", "sy", "alpha", "dalpha", "age", "fluid"):
             setattr(self, k, getattr(self, k)[m])
 
 
@@ -301,11 +330,17 @@ def _consistency(win: np.ndarray, existing: np.ndarray, mask: np.ndarray) -> np.
 
 class PatchSelector:
     """PATCHSELECT (seed 5.4): velocity-neighbourhood candidates from a KD-tree, then colour
-    consistency with the filled output and uniform use of the source."""
+    consistency with the filled output and uniform use of the source.
+
+    With ``blocked`` (source-sized bool: pixels of obstacles in the footage, as the render shows
+    them) the candidates form two pools: ``"fluid"``, the windows touching no blocked pixel,
+    and ``"solid"``, the windows centred on a pixel of ``solid`` (the footage's obstacles), for
+    obstacles the edit adds. Without it every candidate is in the fluid pool."""
 
     def __init__(self, src: np.ndarray, src_flow: np.ndarray, p: int, k: int, min_life: int,
                  stride: int = 2, max_patches: int = 60000, seed: int = 0, margin: int = 4,
-                 tolerance: float = 0.5, velocity_noise: float = 0.0, usage_weight: float = 0.0) -> None:
+                 tolerance: float = 0.5, velocity_noise: float = 0.0, usage_weight: float = 0.0,
+                 blocked: np.ndarray | None = None, solid: np.ndarray | None = None) -> None:
         T, hs, ws = src.shape[:3]
         self.src, self.p, self.k = src, p, k
         self.tolerance, self.usage_weight = tolerance, usage_weight
@@ -330,7 +365,17 @@ class PatchSelector:
             where.append(np.stack([np.full(len(sel), t), yy.ravel()[sel], xx.ravel()[sel]], 1))
         self.feats = np.concatenate(feats).astype(np.float32)
         self.where = np.concatenate(where)
-        self.tree = cKDTree(self.feats)
+        self.blocked = None
+        pools = {"fluid": np.arange(len(self.feats))}
+        if blocked is not None and np.any(blocked):
+            self.blocked = np.pad(np.cumsum(np.cumsum(np.asarray(blocked, np.int64), 0), 1), ((1, 0), (1, 0)))
+            self.solid = np.asarray(solid if solid is not None else blocked, bool)
+            pools = {name: np.flatnonzero(self.in_pool(name, self.where[:, 1], self.where[:, 2]))
+                     for name in ("fluid", "solid")}
+            if len(pools["fluid"]) == 0:
+                raise RenderInputError("every source patch touches an obstacle in the footage: no fluid texture left")
+        self.pools = {name: ids for name, ids in pools.items() if len(ids)}
+        self.trees = {name: cKDTree(self.feats[ids]) for name, ids in self.pools.items()}
         # use of the source by the live output patches, per cell of p/2 px (uniformity)
         self.cell = max(p // 2, 1)
         self.usage = np.zeros((hs // self.cell + 1, ws // self.cell + 1))
@@ -338,6 +383,15 @@ class PatchSelector:
         for y, x in np.unique(self.where[:, 1:], axis=0):
             self.cover[self._cells(y, x)] = True
         self.usage_sum = 0.0
+
+    def in_pool(self, pool: str, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Whether the source windows with top-left (y, x) belong to ``pool`` (see the class)."""
+        y, x = np.asarray(y, int), np.asarray(x, int)
+        if self.blocked is None:
+            return np.full(y.shape, pool == "fluid")
+        if pool == "fluid":
+            return ~_touches(self.blocked, y, x, self.p)
+        return self.solid[y + self.p // 2, x + self.p // 2]
 
     def _cells(self, y: int, x: int) -> tuple[slice, slice]:
         c = self.cell
@@ -377,8 +431,8 @@ class PatchSelector:
         return tot / cnt / mean
 
     def select(self, feature: np.ndarray, existing: np.ndarray | None, mask: np.ndarray | None,
-               coherent: list[tuple[int, int, int]] = (), src_flow: np.ndarray | None = None
-               ) -> tuple[tuple[int, int, int], float]:
+               coherent: list[tuple[int, int, int]] = (), src_flow: np.ndarray | None = None,
+               pool: str = "fluid") -> tuple[tuple[int, int, int], float]:
         """PATCHSELECT for one output patch.
 
         Candidates: the K nearest velocity patches of the video, K drawn at random among all
@@ -394,14 +448,19 @@ class PatchSelector:
         use of the candidate's source cells by the live output (uniform patch usage, as in
         Jamriska et al. 2015); draw at random among those within ``tolerance`` of the lowest.
 
+        All candidates, coherent ones included, come from ``pool`` ("fluid" or "solid", see the
+        class; "solid" falls back to "fluid" when the footage has no obstacle).
+
         Returns:
             the chosen source ``(t, y, x)`` and its data cost.
         """
-        d, idx = self.tree.query(feature, k=self.k, eps=0.5)
-        ids, ds = [np.atleast_1d(idx)], [np.atleast_1d(d)]
+        pool = pool if pool in self.pools else "fluid"
+        members = self.pools[pool]
+        d, idx = self.trees[pool].query(feature, k=min(self.k, len(members)), eps=0.5)
+        ids, ds = [members[np.atleast_1d(idx)]], [np.atleast_1d(d)]
         if self.radius > 0:
             # uniform draw from the ball by rejection: test a random sample of the video patches
-            probe = self.rng.integers(0, len(self.feats), min(self.probe, len(self.feats)))
+            probe = members[self.rng.integers(0, len(members), min(self.probe, len(members)))]
             dp = np.sqrt(((self.feats[probe] - feature) ** 2).sum(1))
             inside = np.flatnonzero(dp <= self.radius)[:self.k]
             ids.append(probe[inside])
@@ -411,6 +470,8 @@ class PatchSelector:
         p = self.p
         T, hs, ws = self.src.shape[:3]
         coh = [(t, y, x) for t, y, x in coherent if 0 <= t < T and 0 <= y <= hs - p and 0 <= x <= ws - p]
+        if coh:
+            coh = [c for c, ok in zip(coh, self.in_pool(pool, [c[1] for c in coh], [c[2] for c in coh])) if ok]
         if coh and src_flow is not None:
             f = np.stack([_window_feature(src_flow[t, y:y + p, x:x + p], p) for t, y, x in coh])
             cand = np.concatenate([cand, np.array(coh, dtype=cand.dtype)])
@@ -437,6 +498,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                     rng: np.random.Generator, settings: RenderSettings | None = None,
                     solid: np.ndarray | None = None,
                     match_flow: np.ndarray | None = None,
+                    footage_solid: np.ndarray | None = None,
                     on_frame: Callable[[int], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Render ``n_frames`` of the edited field by texture transfer from the source video.
 
@@ -452,6 +514,12 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         solid: optional ``(H, W)`` obstacle mask of the output (after frame 0 patches are not
             spawned centred inside it; it gets colour from zero-velocity source patches, which
             hold their source frame there).
+        match_flow: flow the velocity patches are matched on (default ``src_flow``).
+        footage_solid: optional ``(H, W)`` mask of the obstacles that are in the footage at
+            the same place (output pixel = source pixel): they show the source's temporal median,
+            blended over ``overlap`` px outside their edge, and no fluid patch takes texture from
+            what that fill shows; the rest of ``solid`` (obstacles the edit adds) takes texture
+            from windows centred in them.
         on_frame: optional callback ``on_frame(n)`` after output frame ``n`` (progress lines).
 
     Returns:
@@ -494,8 +562,23 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             mflow = np.concatenate([mflow, mflow[-1:]], 0)
         if mflow.shape != sflow.shape:
             raise RenderInputError(f"match_flow shape {np.shape(match_flow)} does not fit src_flow {src_flow.shape}")
+    fill = fill_alpha = blocked = src_solid = None
+    added = solid
+    if footage_solid is not None and np.any(footage_solid):
+        fs = np.asarray(footage_solid, bool)
+        if fs.shape != (H, W):
+            raise RenderInputError(f"footage_solid shape {fs.shape}, expected {(H, W)}")
+        # a solid in the footage is static: the per-pixel temporal median of the source is its
+        # appearance without camera noise and passing fluid (and needs no clip as long as the output)
+        fill = np.median(src[:, :H, :W], axis=0)
+        fill_alpha = obstacle_alpha(fs, o)[..., None]
+        blocked = np.zeros(src.shape[1:3], bool)
+        blocked[:H, :W] = fill_alpha[..., 0] > 0
+        src_solid = np.zeros(src.shape[1:3], bool)
+        src_solid[:H, :W] = fs
+        added = None if solid is None else np.asarray(solid, bool) & ~fs
     sel = PatchSelector(src, mflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)),
-                        velocity_noise=s.velocity_noise, usage_weight=s.usage)
+                        velocity_noise=s.velocity_noise, usage_weight=s.usage, blocked=blocked, solid=src_solid)
     step = p - o
     # the grid reaches ``o`` px past the frame, so that edge pixels get a patch's full weight
     # (an inflow edge otherwise opens an uncovered strip as soon as its patches move in)
@@ -524,8 +607,11 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         # from the start of the clip (rewound: for static texture the same content)
         coh = [(int(P.ts[j]) % (sel.last + 1), int(round(P.sy[j] + cy - P.cy[j])), int(round(P.sx[j] + cx - P.cx[j])))
                for j in near[-4:]]
-        (t, y, x), c = sel.select(feat, existing, mask, coh, mflow)
-        P.append(cx, cy, t, x, y, alpha, 1.0 / fade if alpha < 1 else 0.0)
+        # an obstacle the edit adds takes solid texture; everything else the fluid's
+        ic, jc = min(max(cy + p // 2, 0), H - 1), min(max(cx + p // 2, 0), W - 1)
+        pool = "solid" if added is not None and added[ic, jc] else "fluid"
+        (t, y, x), c = sel.select(feat, existing, mask, coh, mflow, pool=pool)
+        P.append(cx, cy, t, x, y, alpha, 1.0 / fade if alpha < 1 else 0.0, sel.in_pool("fluid", y, x))
         _splat(src, p, o, P.cx[-1:] + o, P.cy[-1:] + o, P.ts[-1:], P.sx[-1:], P.sy[-1:], P.alpha[-1:], n, accum, True,
                cubic)
         spawned += 1
@@ -534,6 +620,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     for n in range(n_frames):
         field = ef[min(n, ef.shape[0] - 1)]
         if n > 0 and len(P.cx):
+            sx0, sy0 = P.sx.copy(), P.sy.copy()
             if advect:
                 v = _bilinear_field(field, P.cx + p / 2, P.cy + p / 2)
                 P.cx = P.cx + v[:, 0]
@@ -559,6 +646,12 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             P.dalpha[off & (P.dalpha >= 0)] = -1.0 / fade
             P.sx = np.clip(P.sx, 0, ws - p)
             P.sy = np.clip(P.sy, 0, hs - p)
+            if sel.blocked is not None and temporal and advect:
+                # a fluid patch whose source window would drift onto a footage obstacle stays
+                # where it was and fades out
+                onto = P.fluid & ~sel.in_pool("fluid", np.round(P.sy), np.round(P.sx))
+                P.sx[onto], P.sy[onto] = sx0[onto], sy0[onto]
+                P.dalpha[onto & (P.dalpha >= 0)] = -1.0 / fade
             ccx, ccy = P.cx + p / 2, P.cy + p / 2
             inside = (ccx > -p / 4) & (ccx < W + p / 4) & (ccy > -p / 4) & (ccy < H + p / 4)
             P.keep(inside & ((P.alpha > 0) | (P.dalpha > 0)))
@@ -591,6 +684,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                     last_spawn[(gy, gx)] = n
                     spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
         img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
+        if fill is not None:
+            img = fill_alpha * fill + (1.0 - fill_alpha) * img
         out[n] = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
         n_live.append(len(P.cx))
         if on_frame is not None:
@@ -598,7 +693,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     dt = time.perf_counter() - t0
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
             "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "mode": s.mode,
-            "source_temporal": temporal, "source_candidates": len(sel.feats)}
+            "source_temporal": temporal, "source_candidates": len(sel.feats),
+            "source_candidates_fluid": len(sel.pools["fluid"])}
     return out, figs
 
 

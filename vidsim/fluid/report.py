@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from vidsim.fluid.metrics import DETAIL_RATIO_MIN, EPE_REL_MAX, MIN_STATIC_PX, PATCH_RATIO_MAX
+from vidsim.fluid.metrics import DETAIL_RATIO_MIN, EPE_REL_MAX, MIN_STATIC_PX, OBSTACLE_GREY_TOL, PATCH_RATIO_MAX
 
 COLUMNS = ("item", "quantity", "value", "target", "met")
 
@@ -87,6 +87,11 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 dr = s["detail_ratio"]
                 rows.append(_row(item, "detail-contrast ratio output/source (wash-out < 1)", dr, f">= {DETAIL_RATIO_MIN}",
                                  None if math.isnan(dr) else dr >= DETAIL_RATIO_MIN))
+            if "footage_obstacle_grey_output" in s and not math.isnan(s["footage_obstacle_grey_source"]):
+                go, gs = s["footage_obstacle_grey_output"], s["footage_obstacle_grey_source"]
+                rows.append(_row(item, "mean grey level inside the obstacles in the footage, output (source "
+                                 f"{gs:.2f}; largest per-frame difference {s['footage_obstacle_grey_diff_max']:.2f})", go,
+                                 f"within {OBSTACLE_GREY_TOL} of the source's", abs(go - gs) <= OBSTACLE_GREY_TOL))
             fo, fs = s["flicker_output"], s["flicker_source"]
             ok = None if (math.isnan(fo) or math.isnan(fs)) else fo <= fs
             if math.isnan(fs) or math.isnan(fo):
@@ -102,7 +107,7 @@ def metrics_rows(summaries: list[dict[str, Any]]) -> list[dict[str, Any]]:
             if "undeclared_obstacles" in s:
                 u = s["undeclared_obstacles"]
                 where = "; ".join(f"node ({c['center'][0]} {c['center'][1]}) r~{c['radius']}" for c in u)
-                rows.append(_row(item, "dark still regions ringed by moving fluid that no obstacle covers (heuristic "
+                rows.append(_row(item, "dark still regions ringed by moving fluid that no in_footage obstacle covers (heuristic "
                                  f"warning{': ' + where if u else ''})", float(len(u)), "", None))
             rows.append(_row(item, "render s/frame", s["render_s_per_frame"], "", None))
             rows.append(_row(item, "optimisation s", s["optimise_s"], "", None))

@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -52,6 +53,18 @@ def test_errors_name_the_key():
     _bad(lambda d: d["sinks"][1].update(box=[9, 30, 20, 32]), r"overlap in \[9, 30, 10, 31\]")  # corners overlap
     # a wall across the grid: sink b cannot be reached from the source
     _bad(lambda d: d.update(obstacles=[{"box": [0, 15, 32, 17]}]), "sink 'a' cannot be reached")
+
+
+def test_obstacles_in_the_footage_apart_from_added_ones():
+    d = copy.deepcopy(BASE)
+    d["obstacles"] = [{"box": [2, 10, 6, 14], "in_footage": True}, {"center": [25.0, 12.0], "radii": [2.0, 2.0]}]
+    spec = EditSpec.from_dict(d)
+    assert [o.in_footage for o in spec.obstacles] == [True, False]
+    shown, added = spec.solid_mask(in_footage=True), spec.solid_mask(in_footage=False)
+    assert shown.sum() == 16 and shown[10:14, 2:6].all() and not (shown & added).any()
+    assert np.array_equal(shown | added, spec.solid_mask())
+    _bad(lambda d: d.update(obstacles=[{"box": [2, 10, 6, 14], "in_footage": "yes"}]),
+         r"obstacles\[0\]\.in_footage='yes', expected true or false")
 
 
 def test_touching_sinks_are_accepted():

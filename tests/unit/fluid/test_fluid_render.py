@@ -9,10 +9,11 @@ import pytest
 
 from vidsim.fluid.edit import EditSpec, RenderSettings
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio, relative_epe,
-                                  rendered_flow_epe, static_flicker, static_mask)
+from vidsim.fluid import render as render_mod
+from vidsim.fluid.metrics import (EPE_REL_MAX, OBSTACLE_GREY_TOL, compensated_flicker, flicker, patch_distance_ratio,
+                                  relative_epe, rendered_flow_epe, static_flicker, static_mask)
 from vidsim.fluid.pipeline import run_edit
-from vidsim.fluid.render import RenderInputError, _compose, _consistency, render_sequence
+from vidsim.fluid.render import RenderInputError, _compose, _consistency, obstacle_alpha, render_sequence
 from vidsim.reality.fluid import make_scene
 
 
@@ -174,7 +175,8 @@ def test_run_edit_second_boat(stream):
         "grid": {"height": 48, "width": 48}, "downsample": 2,
         "sources": [{"box": [0, 2, 1, 46], "distribution": "out"}],
         "sinks": [{"name": "out", "box": [47, 1, 48, 47]}],
-        "obstacles": [{"center": [18.0, 24.0], "radii": [6.0, 2.7]}, {"center": [34.0, 13.0], "radii": [5.0, 2.2]}],
+        "obstacles": [{"center": [18.0, 24.0], "radii": [6.0, 2.7], "in_footage": True},
+                      {"center": [34.0, 13.0], "radii": [5.0, 2.2]}],
         "optimizer": {"iterations": 30}, "render": {"frames": 16}})
     r = run_edit(frames, spec, np.random.default_rng(1), flow=flow)
     f = r["figures"]
@@ -183,6 +185,8 @@ def test_run_edit_second_boat(stream):
     assert f["rendered_flow_epe_rel"] <= EPE_REL_MAX
     assert f["rendered_flow_epe_rel"] == pytest.approx(f["rendered_flow_epe_px"] / f["edited_speed_epe_mask_px"])
     assert r["frames"].shape == (16, 96, 96, 3)
+    # the footage's boat shows the footage's pixels
+    assert abs(f["footage_obstacle_grey_output"] - f["footage_obstacle_grey_source"]) <= OBSTACLE_GREY_TOL
     # static flicker on one mask: here the only static pixels are the boats, declared obstacles,
     # so it is not measurable (each sequence's own static region held boats: output the two
     # declared ones, source the footage's boat)
@@ -195,3 +199,94 @@ def test_bad_render_input(stream):
     frames, flow = stream
     with pytest.raises(RenderInputError, match="src_flow shape"):
         render_sequence(frames, flow[:-1], flow[0], 2, np.random.default_rng(0))
+
+
+RED = (210, 40, 30)
+
+
+def _still_red_disc(T: int = 20, H: int = 48, W: int = 64):
+    """A blue-grey texture (red channel below its green everywhere) moving right 1 px/frame past a
+    still red disc (centre pixel (40, 24), radius 8 px), camera noise sigma 2 grey levels on
+    both: any red seen outside the disc came from the disc."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    tex = cv2.GaussianBlur(rng.uniform(0, 1, (H, W + T)), (0, 0), 1.5)
+    tex = (tex - tex.min()) / np.ptp(tex)
+    fluid = np.stack([20 + 40 * tex, 80 + 120 * tex, 120 + 120 * tex], -1)
+    yy, xx = np.mgrid[0:H, 0:W]
+    disc = (xx - 40) ** 2 + (yy - 24) ** 2 <= 8**2
+    fr = []
+    for t in range(T):
+        f = fluid[:, T - t:T - t + W].copy()
+        f[disc] = RED
+        fr.append(f + rng.normal(0, 2, f.shape))
+    return np.clip(np.stack(fr), 0, 255).round().astype(np.uint8), disc
+
+
+@pytest.fixture(scope="module")
+def red_disc():
+    frames, disc = _still_red_disc()
+    return frames, disc, estimate_flow(frames)
+
+
+def _render_with_disc(frames, disc, flow, added, footage: bool, monkeypatch=None):
+    """Render the texture flowing right at 0.5 px/frame, zero on the obstacles (the footage's disc
+    and ``added``); returns the output and the selector's picks (pool, (t, y, x))."""
+    field = np.zeros(disc.shape + (2,))
+    field[..., 0] = 0.5
+    field[disc | added] = 0.0
+    picks = []
+    if monkeypatch is not None:
+        select = render_mod.PatchSelector.select
+
+        def spy(self, *a, pool="fluid", **k):
+            r = select(self, *a, pool=pool, **k)
+            picks.append((pool, r[0]))
+            return r
+        monkeypatch.setattr(render_mod.PatchSelector, "select", spy)
+    s = RenderSettings(patch=8, overlap=2)
+    out, figs = render_sequence(frames, flow, field, 16, np.random.default_rng(0), s, solid=disc | added,
+                                match_flow=flow.mean(0), footage_solid=disc if footage else None)
+    return out, picks, figs
+
+
+def test_obstacle_in_footage_shows_the_footage(red_disc, monkeypatch):
+    """A still obstacle declared in the footage renders as the footage's own pixels: the per-pixel
+    temporal median of the source, so within 0.5 grey level of it (the uint8 rounding: with an
+    even number of frames the median is a half-integer) and within the range the source's own
+    frames take at that pixel; no fluid patch is taken from what the fill shows (the disc and its
+    blend ring), and no red reaches the fluid. Declared as a plain obstacle, as before this fix,
+    patches next to it take the disc's red into the fluid."""
+    frames, disc, flow = red_disc
+    yy, xx = np.mgrid[0:disc.shape[0], 0:disc.shape[1]]
+    added = (xx - 14) ** 2 + (yy - 24) ** 2 <= 6**2  # an obstacle the edit adds where the footage is fluid
+    out, picks, figs = _render_with_disc(frames, disc, flow, added, True, monkeypatch)
+    med = np.median(frames.astype(np.float64), axis=0)
+    inside = out[:, disc].astype(np.float64)
+    print("in the disc: max |output - source median|", np.abs(inside - med[disc]).max(), figs)
+    assert np.abs(inside - med[disc]).max() <= 0.5
+    assert np.all(inside >= frames[:, disc].min(0)) and np.all(inside <= frames[:, disc].max(0))
+    # the fill's ring: between the fill and the fluid, no seam (a monotone ramp to 0 over 2 px)
+    a = obstacle_alpha(disc, 2)
+    assert a[disc].min() == 1.0 and 0 < a[~disc].max() < 1 and np.all(a[~disc] < 1)
+    shown = a > 0
+    p = 8
+    fluid = [(t, y, x) for pool, (t, y, x) in picks if pool == "fluid"]
+    assert len(fluid) > 20
+    assert not any(shown[y:y + p, x:x + p].any() for t, y, x in fluid)
+    # no red in the fluid (away from the added obstacle, which shows red on purpose, and its patches)
+    far = ~shown & ~(obstacle_alpha(added, p) > 0)
+    r, g = out[..., 0].astype(int), out[..., 1].astype(int)
+    print("red px in the fluid", int((r > g)[:, far].sum()))
+    assert not np.any((r > g)[:, far])
+    # the added obstacle takes solid texture: windows centred on the footage's disc (red)
+    solid = [(y, x) for pool, (t, y, x) in picks if pool == "solid"]
+    assert solid and all(disc[y + p // 2, x + p // 2] for y, x in solid)
+    assert out[:, added, 0].mean() > out[:, added, 1].mean()
+    # before: the disc a plain obstacle, its pixels velocity-matched patches, red in the fluid
+    old, _, _ = _render_with_disc(frames, disc, flow, added, False)
+    ro, go = old[..., 0].astype(int), old[..., 1].astype(int)
+    print("before: red px in the fluid", int((ro > go)[:, far].sum()),
+          "max |output - median| in the disc", np.abs(old[:, disc] - med[disc]).max())
+    assert np.any((ro > go)[:, far])

@@ -125,6 +125,13 @@ def test_metrics_table_flags_missed_targets():
     assert r["median frames for a particle to reach its sink along the field"]["value"] == 400.0
     assert r["fraction of particles reaching their sink within the 120 rendered frames"]["value"] == 0.0
     assert rows_to_csv(metrics_rows([mb])).startswith("item,quantity,value,target,met\n")
+    # an obstacle in the footage: its rendered grey against the footage's
+    grey = {"footage_obstacle_grey_source": 6.9, "footage_obstacle_grey_diff_max": 8.0}
+    for go, met in ((6.95, "yes"), (14.7, "NO")):
+        r = {x["quantity"].split(" (")[0]: x for x in metrics_rows([{**edit, **grey, "footage_obstacle_grey_output": go}])}
+        assert r["mean grey level inside the obstacles in the footage, output"]["met"] == met
+    none = {**edit, "footage_obstacle_grey_output": float("nan"), "footage_obstacle_grey_source": float("nan")}
+    assert not any("inside the obstacles" in x["quantity"] for x in metrics_rows([none]))
     # no static region in the output: flicker not measurable (no verdict), said so in the target
     flame = {**edit, "edit": "f", "flicker_output": float("nan"), "detail_ratio": 0.9, "flicker_mc_output": 1.1,
              "flicker_mc_source": 0.9}
@@ -180,8 +187,11 @@ def test_undeclared_still_dark_region_is_reported_until_declared():
     found = undeclared_obstacles(frames, flow, EditSpec.from_dict(spec))
     print(found)
     assert len(found) == 1 and np.hypot(found[0]["center"][0] - 24, found[0]["center"][1] - 15) < 3
-    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    declared = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5], "in_footage": True}]}
     assert undeclared_obstacles(frames, flow, EditSpec.from_dict(declared)) == []
+    # declared as an obstacle the edit adds, it would be drawn over, not shown: still reported
+    added = {**spec, "obstacles": [{"center": [24.0, 15.0], "radii": [6.5, 6.5]}]}
+    assert undeclared_obstacles(frames, flow, EditSpec.from_dict(added)) == found
     # the edit warns and lists it in its figures
     from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit
 
