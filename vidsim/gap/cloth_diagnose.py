@@ -545,6 +545,14 @@ def grip_discs(cam, corner_paths: np.ndarray, h: int, w: int, radius_px: float) 
     return out
 
 
+def _across_motion(cam, g: np.ndarray, P: np.ndarray, V: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 2) image points of the vertices at time ``t`` and their image velocities turned by 90
+    degrees (pixels per second; NaN as 0): the placebo's direction."""
+    uv0 = cam.project(hermite(g, P, V, np.full(P.shape[1], t)))
+    uv1 = cam.project(hermite(g, P, V, np.full(P.shape[1], t + 1e-4)))
+    return uv0, np.nan_to_num(np.stack([-(uv1[:, 1] - uv0[:, 1]), uv1[:, 0] - uv0[:, 0]], 1) / 1e-4)
+
+
 def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
     """(n_res, F) per-frame columns of a placebo for time jitter (the model must hold
     ``time_jitter``): in frame k every vertex moves in the image *across* its own image velocity
@@ -566,10 +574,8 @@ def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
     bias = float(theta[m.n_est])
     H, W = cam.height, cam.width
     for i, t in enumerate(tc):
-        uv0 = cam.project(hermite(g, P, V, np.full(P.shape[1], t)))
-        uv1 = cam.project(hermite(g, P, V, np.full(P.shape[1], t + 1e-4)))
-        perp = np.stack([-(uv1[:, 1] - uv0[:, 1]), uv1[:, 0] - uv0[:, 0]], 1) / 1e-4
-        d = h[i] * np.nan_to_num(perp)
+        uv0, perp = _across_motion(cam, g, P, V, t)
+        d = h[i] * perp
         cp = soft_coverage(uv0 + d, m.tris, H, W, m.ramp, bias, m.boundary)
         cm = soft_coverage(uv0 - d, m.tris, H, W, m.ramp, bias, m.boundary)
         if prob.moments:  # the moments are not linear in the coverage: difference the moments
@@ -607,6 +613,51 @@ def heldout_time_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: 
 
         sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
         out[i] = float(pk.gap_per_frame(at(sol.x))[0])
+    return out
+
+
+def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: np.ndarray) -> np.ndarray:
+    """(len(test),) gap of each held-out frame after fitting one number on the frame itself as
+    the placebo of :func:`placebo_jacobian` (every vertex moved across its own image velocity by
+    as much as that time error would move it along; the frame's time error left at the refit's),
+    within the bound of :func:`heldout_time_fit`. Equal count and size as the held-out time fit,
+    no timing meaning: what a per-frame parameter gains on a held-out frame without being a time
+    error. Rendered without blur (as the placebo's columns)."""
+    from scipy.optimize import minimize_scalar
+
+    m = prob.model
+    theta = np.asarray(theta, float)
+    sl = m.slices["time_jitter"]
+    bound = max(4.0 * float(np.std(theta[sl][train])), 5e-4)
+    P, V, ok = m.simulate(theta)
+    if not ok:
+        return np.full(len(test), np.inf)
+    cam = m._camera(theta)
+    g = m.setup.times
+    bias = float(theta[m.n_est])
+    H, W = cam.height, cam.width
+    tc = m.capture_times(theta)
+    out = np.zeros(len(test))
+    for i, k in enumerate(np.asarray(test, int)):
+        uv0, perp = _across_motion(cam, g, P, V, tc[k])
+        pk = Problem(m, prob.obs, prob.roi, np.array([k]), prob.steps, prob.fd_target_px,
+                     "moments" if prob.moments else "band")
+
+        def cover(s: float, uv0=uv0, perp=perp) -> np.ndarray:
+            return soft_coverage(uv0 + s * perp, m.tris, H, W, m.ramp, bias, m.boundary)
+
+        def rows(s: float, k=k, pk=pk) -> np.ndarray:
+            return pk.frame_rows(cover(s), 0) - pk.frame_rows(prob.obs[k], 0)
+
+        def cost(s: float) -> float:
+            r = rows(s)
+            return float(r @ r)
+
+        sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
+        if prob.moments:
+            out[i] = float(np.linalg.norm(rows(float(sol.x))))
+        else:
+            out[i] = float(np.abs(cover(float(sol.x)) - prob.obs[k])[prob.roi[k]].sum() / m.scale ** 2)
     return out
 
 
@@ -1172,8 +1223,11 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
             # effects in the model are judged on held-out frames at their right times
             # (frames too slow to tell their time keep the refit's zero, as in the refit)
             test_t = test[timed[test]]
+            g_placebo = g.copy()
             if test_t.size:
                 g[test_t] = heldout_time_fit(pe, th, test_t, train_timed)
+                # the same one number per held-out frame as the placebo's shift (see ``supported``)
+                g_placebo[test_t] = heldout_placebo_fit(pe, th, test_t, train_timed)
         after, tr_after = float(g[test].mean()), float(g[train].mean())
         res = {"effects": list(effects), "heldout_before_px": before, "heldout_after_px": after,
                "heldout_closure": (before - after) / excess if excess > 0 else 0.0,
@@ -1182,6 +1236,8 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
                "heldout_times_fitted": "time_jitter" in effects,
                "gap_per_frame_after_px": g.tolist(), "params": {}, "theta": th.tolist(), "nfev": info["nfev"],
                "starts_tried": n_starts, "stuck_at_start": bool(stuck)}
+        if "time_jitter" in effects:
+            res["heldout_placebo_after_px"] = float(g_placebo[test].mean())
         sd = np.sqrt(np.clip(np.diag(info["cov"]), 0, None))
         for e in effects:
             sl = m.slices[e]
@@ -1212,13 +1268,16 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         """The naming rule relative to the model before ``added`` (the rigid domain's): a held-out
         gap beyond the floor remains and ``added`` closes ``min_closure`` of it; time jitter, whose
         held-out values are not identified, must close that much of the training excess with white
-        time errors instead."""
+        time errors instead, and on the held-out frames (each with its own time error fitted on
+        itself) beat the same fit of the per-frame placebo by ``min_closure`` of the held-out
+        excess (since 5 Dec 2026, session 35; the rigid rule)."""
         ho0 = before if prev is None else prev["heldout_after_px"]
         if ho0 - floor_mean <= cfg.min_excess * floor_mean or res.get("stuck_at_start"):
             return False
         if added == "time_jitter":
+            beats_placebo = (res["heldout_placebo_after_px"] - res["heldout_after_px"]) >= cfg.min_closure * (ho0 - floor_mean)
             return bool(train_closure(res, prev) >= cfg.min_closure
-                        and res["params"][added]["white_fraction"] >= cfg.jitter_min_white)
+                        and res["params"][added]["white_fraction"] >= cfg.jitter_min_white and beats_placebo)
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
     def strength(res: dict, added: str, prev: dict | None) -> float | None:

@@ -33,7 +33,8 @@ interest around the body, at a reduced image scale; the *gap* is the mean per fr
    closure and on whether its fitted time errors are white (most of their variance is not a
    cubic drift, ``jitter_min_white``), unlike the smooth drift a missing force leaves; in a model
    with jitter each held-out frame's own time error is fitted on that frame alone (one number),
-   so that the other effects are judged at the right times.
+   so that the other effects are judged at the right times, and jitter must beat, on those
+   held-out frames, the same one-number fit of a placebo (a shift across the frame's motion).
 6. Where: per-frame gap with motion phases (fast/slow image speed, start/end), accumulated residual
    heatmap, per face of the body (through the rasteriser's face ids), and the per-part split.
 """
@@ -404,13 +405,19 @@ def _free_pose_gap(model: RigidGapModel, obs: np.ndarray, roi: np.ndarray, theta
 
 
 def _heldout_time_fit(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, roi: np.ndarray,
-                      test: np.ndarray, train: np.ndarray) -> np.ndarray:
+                      test: np.ndarray, train: np.ndarray, placebo: bool = False) -> np.ndarray:
     """(F,) mismatch of each held-out frame after fitting its own time error alone (one number).
 
     For a model with per-frame time errors: a held-out frame's error is not identified by the
     refit (it never saw the frame), so it is fitted on the frame itself within four standard
     deviations of the training frames' fitted errors (at least 0.5 ms), every other parameter
     fixed. Full-resolution pixels.
+
+    ``placebo``: fit the same one number per frame as a shift across the frame's image motion
+    instead (perpendicular to the velocity in the image plane, as far as that time error would
+    move the body along it: :meth:`Problem.placebo_jacobian`'s direction), the frame's time error
+    left at the refit's. Equal count and size, no timing meaning: what a per-frame parameter
+    gains on a held-out frame without being a time error.
     """
     from scipy.optimize import minimize_scalar
 
@@ -418,17 +425,27 @@ def _heldout_time_fit(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, 
     theta = np.asarray(theta, float)
     bound = max(4.0 * float(np.std(theta[sl][train])), 5e-4)
     out = np.zeros(len(test))
+    n_c = np.zeros((len(test), 3))
+    if placebo:
+        tc = model.capture_times(theta)[np.asarray(test, int)]
+        X, _, _ = model.poses(theta, tc)
+        Xp, _, _ = model.poses(theta, tc + 1e-4)
+        Vc = (Xp - X) / 1e-4 @ model.cam.R.T
+        n_c = np.stack([-Vc[:, 1], Vc[:, 0], np.zeros(len(Vc))], 1) @ model.cam.R
     for i, k in enumerate(test):
-        def cost(dt: float, k=k) -> float:
+        def render(dt: float, i=i, k=k) -> tuple[np.ndarray, bool]:
             th = theta.copy()
+            if placebo:
+                return model.render(th, np.array([k]), dt * n_c[i][None])
             th[sl.start + k] = dt
-            a, ok = model.render(th, np.array([k]))
+            return model.render(th, np.array([k]))
+
+        def cost(dt: float, k=k) -> float:
+            a, ok = render(dt)
             return float(np.sum(((a[0] - obs[k]) * roi[k]) ** 2)) if ok else np.inf
 
         sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
-        th = theta.copy()
-        th[sl.start + k] = sol.x
-        a, ok = model.render(th, np.array([k]))
+        a, ok = render(float(sol.x))
         out[i] = float(np.abs(a[0] - obs[k])[roi[k]].sum() / model.scale ** 2) if ok else np.inf
     return out
 
@@ -735,6 +752,9 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
             # the refit: fit that one number on the frame itself (the floor frees six) so that
             # other effects in the model are judged on held-out frames at their right times
             g[test] = _heldout_time_fit(pe.model, th, obs, roi, test, train)
+            # the same one number per held-out frame as a shift across its motion (the placebo):
+            # jitter must beat it on frames the refit did not see (see ``supported``)
+            placebo_after = float(_heldout_time_fit(pe.model, th, obs, roi, test, train, placebo=True).mean())
         after = float(g[test].mean())
         tr_after = float(g[train].mean())
         res = {"effects": list(effects), "heldout_before_px": before, "heldout_after_px": after,
@@ -744,6 +764,8 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
                                  / max(tr_before - floor_train_mean, 0.05 * floor_train_mean)),
                "heldout_times_fitted": "time_jitter" in effects,
                "gap_per_frame_after_px": g.tolist(), "params": {}, "theta": th.tolist()}
+        if "time_jitter" in effects:
+            res["heldout_placebo_after_px"] = placebo_after
         sd = np.sqrt(np.clip(np.diag(info["cov"]), 0, None))
         for e in effects:
             sl = pe.model.slices[e]
@@ -766,14 +788,20 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         None for the base model): the held-out gap must still exceed the floor by min_excess,
         and ``added`` must close min_closure of that remaining held-out excess; time jitter,
         whose held-out values are not identified, must close half the remaining training excess
-        with white time errors instead."""
+        with white time errors instead, and on the held-out frames, each with its own time error
+        fitted on itself, it must beat the same fit of a per-frame placebo (a shift across the
+        motion, :func:`_heldout_time_fit`) by ``min_closure`` of the held-out excess (since
+        5 Dec 2026, session 35: before, jitter's held-out gap was fitted on the held-out frames
+        with nothing to compare it with, so an overfitting per-frame parameter passed there)."""
         ho0 = before if prev is None else prev["heldout_after_px"]
         tr0 = tr_before if prev is None else prev["train_after_px"]
         if ho0 - floor_mean <= cfg.min_excess * floor_mean:
             return False
         if added == "time_jitter":
             tr_clos = (tr0 - res["train_after_px"]) / max(tr0 - floor_train_mean, 0.05 * floor_train_mean)
-            return bool(tr_clos >= 0.5 and res["params"][added]["white_fraction"] >= cfg.jitter_min_white)
+            beats_placebo = (res["heldout_placebo_after_px"] - res["heldout_after_px"]) >= cfg.min_closure * (ho0 - floor_mean)
+            return bool(tr_clos >= 0.5 and res["params"][added]["white_fraction"] >= cfg.jitter_min_white
+                        and beats_placebo)
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
     def strength(c: str, res: dict, prev: dict | None) -> float | None:

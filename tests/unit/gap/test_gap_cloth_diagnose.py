@@ -227,6 +227,20 @@ def test_time_jitter_columns_placebo_and_refit_on_model_made_footage():
     th, _ = refit(prob, th0, 8)
     np.testing.assert_allclose(th[sl], truth[sl], atol=1e-5)
     assert prob.gap_per_frame(th).mean() < 0.05 * prob.gap_per_frame(th0).mean()
+    # held out: one number per frame fitted on the frame itself, as its time error or as the
+    # placebo's shift across the motion; only the time error explains these frames
+    from vidsim.gap.cloth_diagnose import heldout_placebo_fit, heldout_time_fit
+
+    # (held-out errors within the search's bound, 4 sd of the training frames' errors: 5.2 ms)
+    test, train = np.array([4, 6, 9]), np.array([0, 1, 2, 3, 5, 7, 8, 10, 11])
+    th_tr = truth.copy()
+    th_tr[sl.start + test] = 0.0
+    before = prob.gap_per_frame(th_tr, test)
+    timed = heldout_time_fit(prob, th_tr, test, train)
+    placebo = heldout_placebo_fit(prob, th_tr, test, train)
+    assert np.all(before > 5.0), before
+    assert np.all(timed < 0.1 * before), (timed, before)
+    assert np.all(placebo > 0.5 * before), (placebo, before)
 
 
 def test_twin_case_with_time_jitter_films_at_jittered_times_and_rejects_bad_values():

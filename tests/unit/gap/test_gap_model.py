@@ -162,3 +162,51 @@ def test_quadratic_drag_with_a_com_offset_acts_about_the_true_centre_of_mass(rng
     np.testing.assert_allclose(Qa, Qb, atol=1e-9)
     true_a = Xa + np.einsum("tij,j->ti", np.array([quat_to_rot(q) for q in Qa]), d)
     np.testing.assert_allclose(true_a, Xb, atol=1e-9)
+
+
+def test_heldout_time_fit_tells_time_errors_from_the_placebo(rng):
+    """On held-out frames one number per frame is fitted, as a time error or as the placebo's
+    shift across the motion: frames filmed with planted time errors are explained by the time
+    fit and not by the placebo, frames moved across their motion the other way round."""
+    from vidsim.gap.rigid_diagnose import _heldout_time_fit
+
+    body, _ = t_object()
+    model = _model(body, ("time_jitter",))
+    p = np.zeros(14)
+    p[0:3] = [-0.8, 0.1, 2.2]
+    p[6:9] = [2.6, -3.0, 0.1]
+    p[9:12] = [3.0, -4.0, 5.0]
+    theta = np.r_[p, np.zeros(model.n_params - 14)]
+    sl = model.slices["time_jitter"]
+    test, train = np.array([2, 5, 8, 11, 14]), np.array([0, 1, 3, 4, 6, 7, 9, 10, 12, 13, 15, 16, 17])
+    # planted time errors of 3 ms (the training frames' fitted errors set the search's bound)
+    errs = rng.normal(0.0, 0.003, model.times.size)
+    th_true = theta.copy()
+    th_true[sl] = errs
+    obs, ok = model.render(th_true)
+    assert ok
+    roi = np.ones(obs.shape, bool)
+    th_fit = theta.copy()
+    th_fit[sl][train] = errs[train]
+    th_fit[sl.start + test] = 0.0
+    before = np.abs(model.render(th_fit)[0][test] - obs[test]).reshape(len(test), -1).sum(1)
+    timed = _heldout_time_fit(model, th_fit, obs, roi, test, train)
+    placebo = _heldout_time_fit(model, th_fit, obs, roi, test, train, placebo=True)
+    assert np.all(before > 20.0), before  # 3 ms moves this body by pixels
+    assert np.all(timed < 0.05 * before), (timed, before)
+    assert np.all(placebo > 0.5 * before), (placebo, before)
+    # the other way round: each held-out frame moved across its motion by as much
+    tc = model.capture_times(theta)[test]
+    X, _, _ = model.poses(theta, tc)
+    Vc = (model.poses(theta, tc + 1e-4)[0] - X) / 1e-4 @ model.cam.R.T
+    n_c = np.stack([-Vc[:, 1], Vc[:, 0], np.zeros(len(Vc))], 1) @ model.cam.R
+    obs2 = obs.copy()
+    th_train = theta.copy()
+    th_train[sl][train] = errs[train]
+    obs2[test] = model.render(theta, test, errs[test][:, None] * n_c)[0]
+    before2 = np.abs(model.render(th_train)[0][test] - obs2[test]).reshape(len(test), -1).sum(1)
+    timed2 = _heldout_time_fit(model, th_train, obs2, roi, test, train)
+    placebo2 = _heldout_time_fit(model, th_train, obs2, roi, test, train, placebo=True)
+    assert np.all(before2 > 20.0), before2
+    assert np.all(placebo2 < 0.05 * before2), (placebo2, before2)
+    assert np.all(timed2 > 0.5 * before2), (timed2, before2)
