@@ -211,6 +211,20 @@ class EvalCache:
         self.close()
 
 
+def logged_keys(path: str | os.PathLike) -> set[str]:
+    """The distinct point keys an evaluation log holds (its header and torn lines skipped; failed
+    evaluations included: they simulated too)."""
+    keys = set()
+    for line in Path(path).read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and "key" in rec:
+            keys.add(rec["key"])
+    return keys
+
+
 def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | None:
     """Reduce an evaluation log to the records of ``keys`` (a finished run's own evaluations), its
     context header kept, written atomically; records of other runs of the same objective (another
