@@ -199,6 +199,16 @@ class EvalCache:
         self.history.append((u.copy(), f))
         return f
 
+    def evaluate(self, u: np.ndarray, fn: Callable[[np.ndarray], Any] | None = None) -> tuple[float, dict]:
+        """``(f, info)`` of the point ``u``: replayed from the log, or computed once by ``fn``
+        (which becomes the cache's function; None: the one it has) and logged. For callers whose
+        result lives in ``info`` (a stage's end point, a calibration): a failure (a floating-point
+        error, a non-finite score) gives ``FAILED_SCORE`` and an ``info`` without their fields."""
+        if fn is not None:
+            self.fn = fn
+        f = self(u)
+        return f, self.store[point_key(u)][1]
+
     def close(self) -> None:
         if self._fh is not None:
             self._fh.close()
