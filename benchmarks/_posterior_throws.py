@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vidsim.io.atomic import write_npz
+from vidsim.io.atomic import restore_nonfinite, to_json, write_npz
 
 
 def throw_data(seed: int, drag: float = 0.0, cache: str | os.PathLike = "/tmp/vidsim_posterior_throws") -> dict:
@@ -32,7 +32,7 @@ def throw_data(seed: int, drag: float = 0.0, cache: str | os.PathLike = "/tmp/vi
         z = np.load(path, allow_pickle=False)
         shape = tuple(int(v) for v in z["shape"])
         masks = np.unpackbits(z["bits"])[: int(np.prod(shape))].reshape(shape).astype(bool)
-        info = json.loads(str(z["info"]))
+        info = restore_nonfinite(json.loads(str(z["info"])))
         return {"masks": masks, "times": z["times"], **info}
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from vidsim.reality.rigid import RigidEffects, make_throw
@@ -44,7 +44,7 @@ def throw_data(seed: int, drag: float = 0.0, cache: str | os.PathLike = "/tmp/vi
     truth = {k: v for k, v in th.truth.items() if k not in ("capture_times",)}
     info = {"camera": th.camera.to_dict(), "meta": th.meta, "truth": truth}
     write_npz(path, bits=np.packbits(masks.ravel()), shape=np.array(masks.shape), times=th.times,
-              info=np.array(json.dumps(info, default=float)))
+              info=np.array(to_json(info, "string")))  # strict JSON; a non-finite truth value read back exactly
     return {"masks": masks, "times": th.times, **info}
 
 

@@ -48,6 +48,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from vidsim.cli.cloth_common import space_from_config  # noqa: E402
+from vidsim.io.atomic import write_json  # noqa: E402
 from vidsim.config.cloth import ClothRealityConfig, _default_space  # noqa: E402
 
 FAST = ["log.rerun=false", "log.progress=false"]
@@ -127,7 +128,7 @@ def main() -> None:
         def timed(key: str, mod: str, *args: str) -> tuple[float, float]:
             w, c = run(mod, *args)
             timing[key] = {"wall_s": w, "cpu_s": c}
-            tfile.write_text(json.dumps(timing, indent=1))
+            write_json(tfile, timing)
             return w, c
 
         for trial in ("exp1", "exp2"):
@@ -210,7 +211,7 @@ def main() -> None:
         v = [r[f"cpu_{k}_s"] for r in per_case.values()]
         print(f"  CPU s per case, {k}: median {np.median(v):.0f}, range {min(v):.0f}-{max(v):.0f}")
     if a.json:
-        Path(a.json).write_text(json.dumps({"tag": tag, "rows": rows, "coverage": float(cov.mean())}, indent=1))
+        write_json(a.json, {"tag": tag, "rows": rows, "coverage": float(cov.mean())})  # strict: non-finite as null
 
 
 if __name__ == "__main__":

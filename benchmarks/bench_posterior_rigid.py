@@ -25,7 +25,6 @@ Single thread.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pickle
 import sys
@@ -40,6 +39,7 @@ import numpy as np  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _posterior_throws import throw_data  # noqa: E402
 
+from vidsim.io.atomic import write_json  # noqa: E402
 from vidsim.posterior.rigid import (ANGLE_IDX, DiscrepancyConfig, FrameLoss, NoiseConfig,  # noqa: E402
                                    calibrate_noise, laplace_samples, refit_discrepancy, rigid_posterior,
                                    to_natural, truth_params)
@@ -179,9 +179,8 @@ def main() -> None:
     rows = []
     for s in a.seeds:
         rows += run_throw(s, a.drag, a.noise, scfg, a.laplace, tuple(a.discrepancy), a.signed, a.refit_nfev)
-        if a.json:
-            with open(a.json, "w") as fh:
-                json.dump(rows, fh)
+        if a.json:  # strict JSON: a non-finite figure is null
+            write_json(a.json, rows)
     print(f"--- {len(a.seeds)} throws, drag {a.drag:g}, total {time.perf_counter() - t:.0f} s (shared 2-core machine)")
     for m in (label(x, tuple(a.discrepancy), a.signed) for x in a.noise):
         r = [x for x in rows if x["model"] == m]

@@ -45,6 +45,19 @@ def test_string_mode_round_trips_every_value(tmp_path):
         to_json(DOC, nonfinite="zero")
 
 
+def test_string_mode_refuses_a_string_that_would_come_back_as_a_float(tmp_path):
+    """A legitimate string "nan"/"inf"/"-inf" (a label) would be read back as a float: refused by
+    key path and value, and no file is written; null mode writes it as it is."""
+    doc = {"cases": [{"label": "ok"}, {"label": "-inf"}]}
+    with pytest.raises(ValueError, match=r"cases\[1\]\.label = '-inf'"):
+        write_json(tmp_path / "x.json", doc, nonfinite="string")
+    assert not (tmp_path / "x.json").exists()
+    with pytest.raises(ValueError, match=r"tags\[0\] = 'nan'"):
+        to_json({"tags": np.array(["nan"])}, nonfinite="string")
+    assert strict_loads(to_json(doc)) == doc
+    assert restore_nonfinite(strict_loads(to_json({"s": "NaN", "t": "info"}, "string"))) == {"s": "NaN", "t": "info"}
+
+
 def test_eval_log_lines_are_strict_and_replay_nonfinite_info(tmp_path):
     log = tmp_path / "evals.jsonl"
     calls = []

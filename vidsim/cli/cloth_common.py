@@ -257,11 +257,9 @@ class LoggedScores:
             return float(r.score), {"ok": bool(r.ok), "failure": r.failure,
                                     "members": [[float(e) for e in m] for m in r.members]}
 
-        self.cache.fn = run
-        f = self.cache(x)
+        f, info = self.cache.evaluate(x, run)
         if keep and full:
             return full[0]
-        info = self.cache.store[key][1]
         return CellScore(f, bool(info.get("ok", False)), info.get("failure"), info.get("members", []))
 
     def close(self) -> None:

@@ -13,7 +13,9 @@ Inputs (Snakemake fills them, one entry per fabric in order): ``heldout`` footag
 files (``anneal_traces``/``cmaes_traces``: per fabric its trials in order; ``joint_traces``).
 Writes ``compare.csv`` / ``compare.yaml`` (held-out error per fabric and method, and the budget each
 used in trial simulations (:data:`SIMULATIONS_COUNTED`): true simulations only, a repeated point the
-fit's cache answered not counted (``trace.csv``'s ``simulated`` column), a joint evaluation counted
+fit's cache answered not counted (``trace.csv``'s ``simulated`` column; for a trace written before
+that column, the distinct points of the ``evals.jsonl`` beside it, which holds exactly the run's own
+evaluations since 3 Dec 2026), a joint evaluation counted
 once per trial, and for the per-trial methods the selection's simulations (every candidate on every
 trial, and a polish's, from ``params.yaml``'s ``trial_simulations``) included),
 ``heldout.png`` and ``curves.png`` (best error so far against evaluations, annealing vs CMA-ES).
@@ -30,6 +32,7 @@ from omegaconf import DictConfig
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_from_dict, read_selected
 from vidsim.io.atomic import write_text, write_yaml
+from vidsim.optim.cache import logged_keys
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
 
@@ -42,9 +45,10 @@ SIMULATIONS_COUNTED = ("simulations of one trial's footage each method made: its
                        "trial) and its polish's; the held-out scoring here is not counted")
 
 
-def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """``(energy, best_so_far, simulated)`` columns of a fit's ``trace.csv`` (names a missing file
-    or column; ``simulated`` is 1 where the evaluation simulated, 0 where the fit's cache answered)."""
+    or column; ``simulated`` is 1 where the evaluation simulated, 0 where the fit's cache answered,
+    None in a trace written before 5 Dec 2026, which had no such column: :func:`fit_simulations`)."""
     p = Path(path)
     if not p.is_file():
         raise ClothStageError(f"{p}: trace.csv is missing")
@@ -52,11 +56,23 @@ def read_trace(path: str | Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rows = list(csv.DictReader(fh))
     if not rows or not {"energy", "best_so_far"} <= set(rows[0]):
         raise ClothStageError(f"{p}: expected columns energy and best_so_far")
-    if "simulated" not in rows[0]:
-        raise ClothStageError(f"{p}: column 'simulated' is missing (a trace written before 5 Dec 2026 counted the "
-                              "cache's answers as evaluations): rerun fit_cloth, which replays its evals.jsonl")
-    return (np.array([float(r["energy"]) for r in rows]), np.array([float(r["best_so_far"]) for r in rows]),
-            np.array([int(r["simulated"]) for r in rows]))
+    sim = np.array([int(r["simulated"]) for r in rows]) if "simulated" in rows[0] else None
+    return np.array([float(r["energy"]) for r in rows]), np.array([float(r["best_so_far"]) for r in rows]), sim
+
+
+def fit_simulations(trace_path: str | Path, trace: tuple) -> int | None:
+    """Simulations a fit made: the sum of its trace's ``simulated`` column or, for a trace written
+    before that column (5 Dec 2026), the distinct points of the ``evals.jsonl`` beside it (since
+    3 Dec 2026 ``keep_only`` leaves there exactly the run's own distinct points). None when neither
+    is available: no column, and no log or one holding more points than the trace has rows (records
+    of other runs, a log from before ``keep_only``)."""
+    if trace[2] is not None:
+        return int(trace[2].sum())
+    log = Path(trace_path).with_name("evals.jsonl")
+    if not log.is_file():
+        return None
+    n = len(logged_keys(log))
+    return n if 0 < n <= len(trace[0]) else None
 
 
 def selection_simulations(doc: dict, where: str) -> int:
@@ -95,8 +111,18 @@ def run(cfg: DictConfig) -> None:
     traces = {"anneal": [read_trace(p) for p in cc.anneal_traces], "cmaes": [read_trace(p) for p in cc.cmaes_traces],
               "joint": [read_trace(p) for p in cc.joint_traces]}
     # budget in true trial simulations (SIMULATIONS_COUNTED), checked before the held-out simulations
-    fits = {m: [int(sum(traces[m][i * nt + k][2].sum() for k in range(nt))) for i in range(n)] for m in ("anneal", "cmaes")}
-    fits["joint"] = [nt * int(t[2].sum()) for t in traces["joint"]]
+    paths = {"anneal": list(cc.anneal_traces), "cmaes": list(cc.cmaes_traces), "joint": list(cc.joint_traces)}
+    sims = {m: [fit_simulations(p, t) for p, t in zip(paths[m], traces[m])] for m in METHODS}
+    uncounted = [str(p) for m in METHODS for p, s_ in zip(paths[m], sims[m]) if s_ is None]
+    if uncounted:
+        raise ClothStageError(
+            "trace.csv without the column 'simulated' (written before 5 Dec 2026, when cache answers counted as "
+            "evaluations) and no evals.jsonl beside it to count the fit's distinct points from: " + ", ".join(uncounted)
+            + ". Force the fits that wrote them (snakemake --forcerun fit_cloth fit_cloth_cmaes fit_cloth_joint, or "
+            "only the rules of these folders); their evaluation logs' fingerprints include the source digest, so a "
+            "rerun refits from scratch (minutes per fit), it does not replay")
+    fits = {m: [sum(sims[m][i * nt + k] for k in range(nt)) for i in range(n)] for m in ("anneal", "cmaes")}
+    fits["joint"] = [nt * s_ for s_ in sims["joint"]]
     select = {m: [selection_simulations(d, p) for d, p in zip(docs[m], lists[m])] for m in ("anneal", "cmaes")}
     select["joint"] = [0] * n
     evals = {m: [fits[m][i] + select[m][i] for i in range(n)] for m in METHODS}

@@ -5,10 +5,16 @@ are simulated on every fabric's *held-out* footage (the robot motion, never used
 scored with the same metric: ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: footage; the diagonal should
 win each column). ``table1.csv`` / ``table1.png`` collect per fabric the grid start, each trial's
 optimum and the selected set with E1, E2 and the cross errors (from ``select_cloth``'s table).
+
+Every cell is logged as it is scored, in ``.validate_cloth.checkpoint/column<j>.jsonl`` in the
+output folder (:class:`vidsim.cli.cloth_common.LoggedScores`, as ``skirt_cloth``): a killed run,
+run again, replays the cells already scored and simulates only the rest; a changed setting or
+footage does not replay them. The folder is removed once ``validation.yaml`` is written.
 """
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +42,10 @@ def run(cfg: DictConfig) -> None:
     for f, s_ in zip(pfiles, sel):  # checked before the matrix's simulations, not after them
         if not isinstance(s_.get("trials"), list):
             raise ClothStageError(f"{f}: field 'trials' is missing (not a select_cloth output)")
-    E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth")
+    ckpt = out / ".validate_cloth.checkpoint"  # the cells' logs; removed once validation.yaml is written
+    if ckpt.is_dir():
+        print(f"validate_cloth: resuming from {ckpt} (cells already scored are replayed, not simulated)", flush=True)
+    E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth", checkpoint=ckpt)
     n = len(fabrics)
     wins = diagonal_wins(E)
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
@@ -81,6 +90,7 @@ def run(cfg: DictConfig) -> None:
     save_figure(fig, out / "table1.png")
     write_yaml(out / "validation.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
                                          "of": n, "wins_per_footage": dict(zip(fabrics, wins))})
+    shutil.rmtree(ckpt, ignore_errors=True)
     print(f"validate_cloth: diagonal wins {sum(wins)}/{n}", flush=True)
 
 

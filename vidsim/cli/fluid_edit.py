@@ -41,7 +41,8 @@ from vidsim.errors import ConfigError, FootageError
 from vidsim.fluid.edit import EditSpec
 from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
-from vidsim.fluid.pipeline import UndeclaredObstacleWarning, run_edit, undeclared_obstacles, video_fields
+from vidsim.fluid.pipeline import (UndeclaredObstacleWarning, run_edit, undeclared_obstacle_message, undeclared_obstacles,
+                                   video_fields)
 from vidsim.fluid.viz import arrow_grid
 from vidsim.io.atomic import atomic_path, replace_dir, to_json, write_json, write_npz, write_text
 from vidsim.io.footage import load_yaml, read_footage
@@ -223,10 +224,7 @@ def run(cfg: DictConfig) -> None:
     video_fields(flow[:1], spec)  # the grid must fit the footage (clear error before optimising)
     undeclared = undeclared_obstacles(frames, flow, spec)
     for u in undeclared:  # before the long part, one line each
-        print(f"fluid_edit: WARNING: {ec.spec}: the footage has a dark, still region around node "
-              f"({u['center'][0]}, {u['center'][1]}) ({u['nodes']} nodes, radius ~{u['radius']}) with moving fluid "
-              "around it that no 'in_footage: true' obstacle covers; if it is a solid, declare it under 'obstacles' "
-              "with in_footage: true or the edit flows through it", file=sys.stderr, flush=True)
+        print(f"fluid_edit: WARNING: {ec.spec}: {undeclared_obstacle_message(u)}", file=sys.stderr, flush=True)
     out = Path(cfg.paths.out)
     ckpt = out.parent / f".{out.name}.ckpt.npz"
     key = _spec_key(raw, n_frames, spec.optimizer.iterations, folder, flow)
@@ -289,8 +287,7 @@ def run(cfg: DictConfig) -> None:
         "patch_coherence_ratio": float(figs["patch_distance"]["coherence_ratio"]),
         "patch_completeness_ratio": float(figs["patch_distance"]["completeness_ratio"]),
         "detail_ratio": float(figs["detail_ratio"]),
-        **{k: float(figs[k]) for k in ("footage_obstacle_grey_output", "footage_obstacle_grey_source",
-                                        "footage_obstacle_grey_diff_max")},
+        **{k: float(figs[k]) for k in ("footage_obstacle_grey_output", "footage_obstacle_grey_source")},
         "flicker_output": float(figs["flicker_output"]), "flicker_source": float(figs["flicker_source"]),
         "flicker_mc_output": float(figs["flicker_mc_output"]), "flicker_mc_source": float(figs["flicker_mc_source"]),
         "static_fraction": float(figs["static_fraction"]),
@@ -320,7 +317,7 @@ def run(cfg: DictConfig) -> None:
             lg.arrows2d("sim/camera/field", oa, va)
         lg.series("metric/rendered_flow_epe_px", r["epe_frames"], timeline="frame")
         lg.series("optim/objective", np.asarray(res.history), timeline="iter")
-        lg.text("log", to_json(summary, default=float))
+        lg.text("log", to_json(summary))
         write_video(tmp / "edit.mp4", outf, float(ec.video_fps))
         g = np.linspace(0, n_frames - 1, min(int(ec.gif_frames), n_frames)).round().astype(int)
         sep = np.full((H, 2, 3), 255, np.uint8)

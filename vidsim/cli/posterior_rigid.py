@@ -8,13 +8,15 @@ Writes ``summary.csv`` (point estimate, 5/50/95 % and sd per parameter, angles i
 ``posterior.yaml`` (diagnostics: autocorrelation times, ``converged``, ESS, noise model,
 multimodality flag, correlations), ``corner.png``, ``correlation.png``, ``chain.npz`` (resumable:
 a killed run continues from its last checkpoint, and replays its start refit and noise calibration
-from ``calibration.jsonl`` beside it in the staging folder, removed when the run finishes) and ``posterior.rrd`` (footage with the observed
+from ``.calibration.checkpoint/calibration.jsonl`` in the staging folder: :func:`calibration_log`,
+removed with whatever the log moved aside when the run finishes) and ``posterior.rrd`` (footage with the observed
 silhouette and the fraction of posterior draws covering each pixel; per-frame mismatch at the mode
 as scalars). Never reads truth.
 """
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +44,22 @@ def summary_csv(rows: list[dict]) -> str:
     for r in rows:
         lines.append(",".join(str(r[c]) if c in ("name", "unit") else f"{r[c]:.9g}" for c in cols))
     return "\n".join(lines) + "\n"
+
+
+def calibration_log(tmp: Path) -> Path:
+    """Where the start refit and noise calibration are logged: a checkpoint folder of its own in
+    the staging folder ``tmp``, so that the log and what it moves aside after an input change
+    (``calibration.stale-<k>.jsonl``) leave together (:func:`finish`)."""
+    return tmp / ".calibration.checkpoint" / "calibration.jsonl"
+
+
+def finish(tmp: Path, out: Path) -> None:
+    """Drop the checkpoints (the calibration log's folder; a log an earlier version kept in ``tmp``
+    itself, with its stale copies) and put ``tmp`` in the place of ``out``."""
+    shutil.rmtree(calibration_log(tmp).parent, ignore_errors=True)
+    for left in tmp.glob("calibration*.jsonl"):
+        left.unlink()
+    replace_dir(tmp, out)
 
 
 def run(cfg: DictConfig) -> None:
@@ -96,7 +114,7 @@ def run(cfg: DictConfig) -> None:
 
         post = rigid_posterior(obs, fit.times, cam, body, fit.params, fit.q0, fit.t0, alts, noise, prior, scfg,
                                str(tmp / "chain.npz"), on_chunk, rc.distinct_deg, rc.multimodal_ratio,
-                               gravity=gravity, discrepancy=disc, calibration_path=str(tmp / "calibration.jsonl"))
+                               gravity=gravity, discrepancy=disc, calibration_path=str(calibration_log(tmp)))
         diag = post.diagnostics()
         # per frame: footage, observed silhouette, fraction of posterior draws covering each pixel
         S = post.samples(natural=False)
@@ -134,8 +152,7 @@ def run(cfg: DictConfig) -> None:
                                            ("multimodal", bool(diag.get("multimodal")))) if bad)
         save_figure(corner_figure(post.samples(), post.names, post.units, nat_point, flags=warn), tmp / "corner.png")
         save_figure(correlation_figure(post.corr, post.names), tmp / "correlation.png")
-    (tmp / "calibration.jsonl").unlink(missing_ok=True)  # a checkpoint, not an output
-    replace_dir(tmp, out)
+    finish(tmp, out)
     print(f"posterior_rigid: converged {diag['converged']} (steps {diag['n_steps']}, tau_max {diag['tau_max']:.0f}), "
           f"ESS {diag['ess']:.0f}, multimodal {diag['multimodal']}, {diag['seconds']:.0f} s")
 

@@ -53,6 +53,15 @@ def video_fields(flow: np.ndarray, spec: EditSpec) -> np.ndarray:
     return g[:, :spec.height, :spec.width]
 
 
+def undeclared_obstacle_message(u: dict[str, Any]) -> str:
+    """The warning for one region :func:`undeclared_obstacles` found (the pipeline's
+    :class:`UndeclaredObstacleWarning` and ``fluid_edit``'s printed line say the same)."""
+    return (f"the footage has a dark, still region around node ({u['center'][0]}, {u['center'][1]}) ({u['nodes']} "
+            f"nodes, radius ~{u['radius']}) with moving fluid around it that no 'in_footage: true' obstacle of the edit "
+            "covers: if it is a solid in the footage, declare it under 'obstacles' with in_footage: true "
+            "(docs/fluid_editing.md), or the edited field flows through it and the render paints it out")
+
+
 def undeclared_obstacles(src_frames: np.ndarray, flow: np.ndarray, spec: EditSpec, dark: float = 0.3,
                          still: float = 0.2, moving_around: float = 0.2, min_nodes: int = 16) -> list[dict[str, Any]]:
     """Regions of the footage that look like a solid the edit does not declare: dark, unchanging
@@ -140,11 +149,7 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
     g = video_fields(flow, spec)
     undeclared = undeclared_obstacles(src_frames, flow, spec)
     for u in undeclared:
-        warnings.warn(f"the footage has a dark, still region around node {tuple(u['center'])} ({u['nodes']} nodes, "
-                      f"radius ~{u['radius']}) with moving fluid around it that no 'in_footage: true' obstacle of the "
-                      "edit covers: if it is a solid in the footage, declare it under 'obstacles' with in_footage: true "
-                      "(docs/fluid_editing.md), or the edited field flows through it and the render paints it out",
-                      UndeclaredObstacleWarning, stacklevel=2)
+        warnings.warn(undeclared_obstacle_message(u), UndeclaredObstacleWarning, stacklevel=2)
     step = max(1, g.shape[0] // 12)
     res: EditResult = edit_field(g.mean(0), spec, g[::step], resume=resume, on_iter=on_iter)
     ds = spec.downsample

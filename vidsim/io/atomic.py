@@ -80,28 +80,35 @@ NONFINITE_MODES = ("null", "string")
 _NONFINITE_STRINGS = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
 
 
-def _to_plain(obj: Any, nonfinite: str | None = None) -> Any:
+def _to_plain(obj: Any, nonfinite: str | None = None, where: str = "") -> Any:
     """Plain Python values (numpy arrays and scalars, paths, tuples converted); with ``nonfinite``
-    (one of :data:`NONFINITE_MODES`) every NaN / +-inf float is replaced as that mode says."""
+    (one of :data:`NONFINITE_MODES`) every NaN / +-inf float is replaced as that mode says. In
+    ``"string"`` mode a string value that is itself ``"nan"``, ``"inf"`` or ``"-inf"`` (a label, say)
+    is refused (ValueError naming its key path, ``where`` that of ``obj``): :func:`restore_nonfinite`
+    would read it back as a float."""
     if isinstance(obj, dict):
-        return {str(k): _to_plain(v, nonfinite) for k, v in obj.items()}
+        return {str(k): _to_plain(v, nonfinite, f"{where}.{k}" if where else str(k)) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_to_plain(v, nonfinite) for v in obj]
+        return [_to_plain(v, nonfinite, f"{where}[{i}]") for i, v in enumerate(obj)]
     if isinstance(obj, np.ndarray):
-        return _to_plain(obj.tolist(), nonfinite)
+        return _to_plain(obj.tolist(), nonfinite, where)
     if isinstance(obj, np.generic):
-        return _to_plain(obj.item(), nonfinite)
+        return _to_plain(obj.item(), nonfinite, where)
     if isinstance(obj, Path):
-        return str(obj)
+        obj = str(obj)
     if nonfinite is not None and isinstance(obj, float) and not math.isfinite(obj):
         return None if nonfinite == "null" else ("nan" if obj != obj else ("inf" if obj > 0 else "-inf"))
+    if nonfinite == "string" and isinstance(obj, str) and obj in _NONFINITE_STRINGS:
+        raise ValueError(f"{where or '(top level)'} = {obj!r}: a string that would be read back as a float "
+                         f"(restore_nonfinite); with nonfinite='string' such a value cannot be written")
     return obj
 
 
 def to_json(data: Any, nonfinite: str = "null", **kw: Any) -> str:
     """``data`` (numpy arrays allowed) as strict JSON text (``allow_nan=False``: no ``NaN`` or
     ``Infinity`` tokens, which Python reads but browsers and ``jq`` refuse). Non-finite floats are
-    written as ``nonfinite`` says (:data:`NONFINITE_MODES`); ``kw`` go to :func:`json.dumps`."""
+    written as ``nonfinite`` says (:data:`NONFINITE_MODES`; ``"string"`` refuses a string value
+    ``"nan"``/``"inf"``/``"-inf"``, which would come back as a float); ``kw`` go to :func:`json.dumps`."""
     if nonfinite not in NONFINITE_MODES:
         raise ValueError(f"nonfinite must be one of {NONFINITE_MODES}, got {nonfinite!r}")
     return json.dumps(_to_plain(data, nonfinite), allow_nan=False, **kw)

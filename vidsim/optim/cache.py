@@ -199,6 +199,16 @@ class EvalCache:
         self.history.append((u.copy(), f))
         return f
 
+    def evaluate(self, u: np.ndarray, fn: Callable[[np.ndarray], Any] | None = None) -> tuple[float, dict]:
+        """``(f, info)`` of the point ``u``: replayed from the log, or computed once by ``fn``
+        (which becomes the cache's function; None: the one it has) and logged. For callers whose
+        result lives in ``info`` (a stage's end point, a calibration): a failure (a floating-point
+        error, a non-finite score) gives ``FAILED_SCORE`` and an ``info`` without their fields."""
+        if fn is not None:
+            self.fn = fn
+        f = self(u)
+        return f, self.store[point_key(u)][1]
+
     def close(self) -> None:
         if self._fh is not None:
             self._fh.close()
@@ -209,6 +219,20 @@ class EvalCache:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+
+def logged_keys(path: str | os.PathLike) -> set[str]:
+    """The distinct point keys an evaluation log holds (its header and torn lines skipped; failed
+    evaluations included: they simulated too)."""
+    keys = set()
+    for line in Path(path).read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and "key" in rec:
+            keys.add(rec["key"])
+    return keys
 
 
 def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | None:

@@ -343,7 +343,7 @@ def calibrate_logged(masks: np.ndarray, loss: FrameLoss, p_fit: np.ndarray, nois
     """
     from dataclasses import fields
 
-    from vidsim.optim.cache import EvalCache, point_key
+    from vidsim.optim.cache import EvalCache
 
     def run(_u: np.ndarray) -> tuple[float, dict]:
         p_start = refit_discrepancy(masks, loss, p_fit, disc) if disc.effects else p_fit
@@ -352,8 +352,7 @@ def calibrate_logged(masks: np.ndarray, loss: FrameLoss, p_fit: np.ndarray, nois
 
     u = np.asarray(p_fit, float)
     with EvalCache(run, path, context) as log:
-        log(u)
-        info = log.store[point_key(u)][1]
+        _, info = log.evaluate(u)
     if "noise" not in info:  # the calibration raised a floating-point error (EvalCache's failed score)
         raise PosteriorError(f"noise calibration failed: {info.get('failure', 'floating-point error')}")
     rec = info["noise"]

@@ -591,11 +591,7 @@ def _logged_stage(log, objective, st: Stage, p: np.ndarray, q: np.ndarray
         p1, q1, E, h = run_stage(objective(st), p, q, st.maxiter)
         return E, {"p": p1.tolist(), "q": q1.tolist(), "h": [float(x) for x in h]}
 
-    from vidsim.optim.cache import point_key
-
-    log.fn = run
-    E = log(u)
-    info = log.store[point_key(u)][1]
+    E, info = log.evaluate(u, run)
     if "p" not in info:  # the stage raised a floating-point error: a failed start, never a crash
         return np.asarray(p, float), np.asarray(q, float), FAIL_COST, [FAIL_COST]
     return np.asarray(info["p"], float), np.asarray(info["q"], float), float(E), list(info["h"])

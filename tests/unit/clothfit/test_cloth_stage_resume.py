@@ -1,4 +1,4 @@
-"""score_cloth_twin and skirt_cloth resume within a run: every simulation is logged as it finishes
+"""score_cloth_twin, skirt_cloth and validate_cloth resume within a run: every simulation is logged as it finishes
 (:class:`vidsim.cli.cloth_common.LoggedScores`, the fits' evaluation-log mechanism); a run killed
 partway and run again writes the uninterrupted run's outputs bit for bit and simulates only what
 was not logged; a changed setting does not replay the old scores.
@@ -20,6 +20,7 @@ from omegaconf import OmegaConf
 import vidsim.cli.cloth_common as common
 import vidsim.cli.cloth_skirt as skirt_stage
 import vidsim.cli.cloth_twin_score as twin_stage
+import vidsim.cli.cloth_validate as validate_stage
 from vidsim.cli.cloth_common import params_dict
 from vidsim.cloth import ClothParams
 from vidsim.clothfit.features import FeatureSettings, extract_features
@@ -147,3 +148,23 @@ def test_skirt_matrix_resumes_bit_identical_and_recomputes_after_a_setting_chang
     skirt_stage.run(_cfg(*args, f"paths.out={out}", "cloth.fit.alpha=0.2"))
     assert sims["n"] == 4  # every cell again: the logs were written for another objective
     assert yaml.safe_load((out / "skirt.yaml").read_text())["matrix"] != doc["matrix"]
+
+
+def test_validation_matrix_resumes_bit_identical(tmp_path, sims):
+    files = []
+    for name, p in (("soft", SOFT), ("stiff", STIFF)):
+        (tmp_path / f"{name}.yaml").write_text(yaml.safe_dump({"params": params_dict(p), "trials": [], "rows": []}))
+        files.append(str(tmp_path / f"{name}.yaml"))
+    args = [f"paths.results={tmp_path}", "cloth.validate.fabrics=[soft,stiff]",
+            f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage=[{tmp_path / 'soft'},{tmp_path / 'stiff'}]"]
+    whole = tmp_path / "whole"
+    validate_stage.run(_cfg(*args, f"paths.out={whole}"))
+    assert sims["n"] == 4 and not (whole / ".validate_cloth.checkpoint").exists()
+    out = tmp_path / "resumed"
+    _run_killed(validate_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)
+    assert len(list((out / ".validate_cloth.checkpoint").glob("column*.jsonl"))) == 2
+    validate_stage.run(_cfg(*args, f"paths.out={out}"))
+    assert sims["n"] == 1  # only the cell not logged (no diagonal kept for videos here)
+    for f in ("validation.yaml", "matrix.csv"):
+        assert (out / f).read_bytes() == (whole / f).read_bytes()
+    assert not (out / ".validate_cloth.checkpoint").exists()

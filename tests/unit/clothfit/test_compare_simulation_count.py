@@ -2,7 +2,8 @@
 cache answered again is not one (trace.csv's ``simulated`` column), the cross-trial selection's
 simulations (every candidate on every trial, and a polish's) are added to the per-trial methods, and
 a joint evaluation counts once per trial. Before 5 Dec 2026 (session 35) it counted trace rows (cache
-answers included) and left the selection out."""
+answers included) and left the selection out; a trace from before the column is counted from the
+fit's evals.jsonl."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from vidsim.cli.cloth_fit import simulated_flags
 from vidsim.clothfit.objective import space_from_config
 from vidsim.clothfit.study import fit
 from vidsim.config import CONF_DIR
-from vidsim.optim.cache import point_key
+from vidsim.optim.cache import EvalCache, point_key
 
 P = {"bend": 1e-5, "stretch": 200.0, "shear": 30.0, "bend_damping": 3e-8, "stretch_damping": 3e-3,
      "shear_damping": 3e-3, "drag_linear": 0.5, "drag_quad": 0.7, "drag_degrade": 0.2, "density": 0.2}
@@ -87,10 +88,33 @@ def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatc
     assert "cache" in doc["trial_simulations_counted"] and "selection" in doc["trial_simulations_counted"]
     csv_row = (tmp_path / "compare" / "compare.csv").read_text().splitlines()[1].split(",")
     assert csv_row[4:7] == ["31", "10", "19"] and csv_row[-1] == "joint"
-    # a trace from before the column, and a polished selection that did not record its simulations
-    (tmp_path / "old.csv").write_text("evaluation,phase,energy,best_so_far\n0,grid,1,1\n")
-    with pytest.raises(ClothStageError, match="old.csv: column 'simulated' is missing"):
-        stage.run(_cfg(tmp_path, {**lists, "joint_traces": [tmp_path / "old.csv"]}))
+    # traces from before the column: counted from the evals.jsonl beside them (the run's distinct
+    # points: 4 here, one failed and one answered twice), refused by name only where there is none
+    old = {}
+    for k in ("joint", "c2", "a1"):
+        old[k] = tmp_path / f"old_{k}" / "trace.csv"
+        old[k].parent.mkdir()
+        old[k].write_text("evaluation,phase,energy,best_so_far\n" + "".join(f"{i},grid,1,1\n" for i in range(6)))
+    with EvalCache(lambda u: float(u[0]) if u[0] < 0.7 else float("nan"), old["joint"].parent / "evals.jsonl",
+                   context="c") as f:
+        for x in (0.1, 0.2, 0.2, 0.8, 0.3, 0.1):
+            f(np.array([x, 0.5]))
+    old_lists = {**lists, "joint_traces": [old["joint"]]}
+    stage.run(_cfg(tmp_path, old_lists))
+    doc = yaml.safe_load((tmp_path / "compare" / "compare.yaml").read_text())
+    assert doc["trial_simulations_parts"]["joint"] == {"fits": [2 * 4], "selection": [0]}
+    with pytest.raises(ClothStageError) as err:
+        stage.run(_cfg(tmp_path, {**old_lists, "cmaes_traces": [tr["c1"], old["c2"]], "anneal_traces": [old["a1"], tr["a2"]]}))
+    msg = str(err.value)
+    assert str(old["c2"]) in msg and str(old["a1"]) in msg and str(old["joint"]) not in msg  # every one at once
+    assert "fit_cloth fit_cloth_cmaes fit_cloth_joint" in msg and "refits from scratch" in msg
+    # a log holding more points than the trace has rows (other runs' records) is not trusted
+    with EvalCache(lambda u: 1.0, old["c2"].parent / "evals.jsonl", context="c") as f:
+        for x in range(7):
+            f(np.array([x / 10, 0.5]))
+    with pytest.raises(ClothStageError, match="old_c2/trace.csv"):
+        stage.run(_cfg(tmp_path, {**lists, "cmaes_traces": [tr["c1"], old["c2"]]}))
+    # a polished selection that did not record its simulations
     (tmp_path / "cmaes.yaml").write_text(yaml.safe_dump({"params": P, "rows": rows, "polish": {"budget": 6}}))
     with pytest.raises(ClothStageError, match="cmaes.yaml: field 'trial_simulations' is missing"):
         stage.run(_cfg(tmp_path, lists))

@@ -10,7 +10,7 @@ import pytest
 from vidsim.fluid.edit import EditSpec, RenderSettings
 from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid import render as render_mod
-from vidsim.fluid.metrics import (EPE_REL_MAX, OBSTACLE_GREY_TOL, compensated_flicker, flicker, patch_distance_ratio,
+from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio,
                                   relative_epe, rendered_flow_epe, static_flicker, static_mask)
 from vidsim.fluid.pipeline import run_edit
 from vidsim.fluid.render import RenderInputError, _compose, _consistency, obstacle_alpha, render_sequence
@@ -185,8 +185,10 @@ def test_run_edit_second_boat(stream):
     assert f["rendered_flow_epe_rel"] <= EPE_REL_MAX
     assert f["rendered_flow_epe_rel"] == pytest.approx(f["rendered_flow_epe_px"] / f["edited_speed_epe_mask_px"])
     assert r["frames"].shape == (16, 96, 96, 3)
-    # the footage's boat shows the footage's pixels
-    assert abs(f["footage_obstacle_grey_output"] - f["footage_obstacle_grey_source"]) <= OBSTACLE_GREY_TOL
+    # the footage's boat shows the footage's pixels (its temporal median: a check that the fill is
+    # wired in, not a quality figure, which the report gives without a verdict)
+    assert abs(f["footage_obstacle_grey_output"] - f["footage_obstacle_grey_source"]) <= 1.0
+    assert "footage_obstacle_grey_diff_max" not in f
     # static flicker on one mask: here the only static pixels are the boats, declared obstacles,
     # so it is not measurable (each sequence's own static region held boats: output the two
     # declared ones, source the footage's boat)

@@ -113,3 +113,30 @@ def test_keep_only_leaves_the_runs_own_records_and_moves_the_rest(tmp_path) -> N
     with EvalCache(f, log, context="A") as cache:  # still resumable
         cache(c)
     assert n["k"] == 3
+
+
+def test_evaluate_runs_once_and_reads_the_stored_result_back(tmp_path) -> None:
+    """EvalCache.evaluate: the (f, info) a caller needs when its result lives in info, replayed on
+    a rerun; a floating-point error gives the failed score and an info without the result."""
+    from vidsim.optim import FAILED_SCORE
+    from vidsim.optim.cache import logged_keys
+
+    log = tmp_path / "evals.jsonl"
+    calls = []
+
+    def run(u):
+        calls.append(u)
+        return 2.0, {"p": [float(u[0]), float("nan")]}
+
+    with EvalCache(lambda u: None, log, context="A") as cache:
+        f, info = cache.evaluate(np.array([0.5]), run)
+    with EvalCache(lambda u: 9.0, log, context="A") as cache:
+        f2, info2 = cache.evaluate(np.array([0.5]))
+    assert f == f2 == 2.0 and len(calls) == 1 and info2["p"][0] == 0.5 and np.isnan(info2["p"][1])
+
+    def boom(u):
+        raise FloatingPointError
+
+    with EvalCache(boom, None) as cache:
+        assert cache.evaluate(np.array([0.1])) == (FAILED_SCORE, {})
+    assert len(logged_keys(log)) == 1

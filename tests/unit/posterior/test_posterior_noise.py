@@ -194,3 +194,25 @@ def test_logged_calibration_is_replayed_bit_for_bit_and_recomputed_for_other_inp
     n = loss.n_evals
     calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-b")
     assert loss.n_evals > n and (tmp_path / "calibration.stale-1.jsonl").is_file()
+
+
+def test_posterior_rigid_output_holds_no_calibration_log(rng, tmp_path) -> None:
+    """The stage's calibration log, and the stale copy it moves aside after a kill and an input
+    change, stay in their checkpoint folder, which is removed before the staging folder becomes the
+    output (before: calibration.stale-1.jsonl reached results/posterior/rigid/<throw>/)."""
+    from vidsim.cli.posterior_rigid import calibration_log, finish
+    from vidsim.posterior.rigid import DiscrepancyConfig, calibrate_logged
+
+    loss = LinearFrames(rng, 200, 1.0)
+    masks = np.zeros((200, 2, 2), bool)
+    cfg = NoiseConfig(n_design=150, design_iters=1)
+    tmp, out = tmp_path / ".throw.part", tmp_path / "throw"
+    tmp.mkdir()
+    (tmp / "calibration.jsonl").write_text("{}\n")  # where an earlier version kept the log
+    log = calibration_log(tmp)
+    for ctx in ("inputs-a", "inputs-b"):  # killed, then rerun with a changed input
+        calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), ctx)
+    assert log.with_name("calibration.stale-1.jsonl").is_file()
+    (tmp / "summary.csv").write_text("name\n")
+    finish(tmp, out)
+    assert sorted(p.name for p in out.rglob("*")) == ["summary.csv"]
