@@ -218,7 +218,10 @@ def test_a_resumed_case_with_nonfinite_figures_scores_as_an_uninterrupted_run(tm
     """The case files are strict JSON (non-finite numbers as the strings "nan"/"inf"/"-inf", not NaN
     tokens); a resumed suite reads them back as floats, so its headline, shrinkage.csv and suite.json
     equal an uninterrupted run's (a null read back as "not measured" would have changed the headline)."""
-    from tests.unit.test_strict_json import strict_loads
+    def strict_loads(text: str):  # json.loads refusing NaN/Infinity tokens, as a browser's JSON.parse
+        def refuse(tok):
+            raise ValueError(f"non-strict token {tok}")
+        return json.loads(text, parse_constant=refuse)
 
     crash = {"seed": None}
 
