@@ -75,7 +75,7 @@ from vidsim.cloth import ClothParams, ClothStepError
 from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, ClothSetup, hermite, soft_coverage
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, frame_sandwich_cov, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
-from vidsim.gap.rigid_diagnose import _heldout_time_fit, _lag1, _white_fraction
+from vidsim.gap.rigid_diagnose import _fit_one_number, _heldout_time_fit, _lag1, _white_fraction
 from vidsim.io.atomic import atomic_path
 from vidsim.optim.cache import fingerprint
 
@@ -593,7 +593,6 @@ def heldout_time_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: 
     band version this calls; for moments the same search on the frame's six moments)."""
     if not prob.moments:
         return _heldout_time_fit(prob.model, theta, prob.obs, prob.roi, test, train)
-    from scipy.optimize import minimize_scalar
 
     sl = prob.model.slices["time_jitter"]
     theta = np.asarray(theta, float)
@@ -611,8 +610,7 @@ def heldout_time_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: 
             r = pk.residual(at(dt))
             return float(r @ r)
 
-        sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
-        out[i] = float(pk.gap_per_frame(at(sol.x))[0])
+        out[i] = float(pk.gap_per_frame(at(_fit_one_number(cost, bound, theta[sl.start + k])))[0])
     return out
 
 
@@ -623,8 +621,6 @@ def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, trai
     within the bound of :func:`heldout_time_fit`. Equal count and size as the held-out time fit,
     no timing meaning: what a per-frame parameter gains on a held-out frame without being a time
     error. Rendered without blur (as the placebo's columns)."""
-    from scipy.optimize import minimize_scalar
-
     m = prob.model
     theta = np.asarray(theta, float)
     sl = m.slices["time_jitter"]
@@ -653,11 +649,11 @@ def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, trai
             r = rows(s)
             return float(r @ r)
 
-        sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
+        x = _fit_one_number(cost, bound, 0.0)
         if prob.moments:
-            out[i] = float(np.linalg.norm(rows(float(sol.x))))
+            out[i] = float(np.linalg.norm(rows(x)))
         else:
-            out[i] = float(np.abs(cover(float(sol.x)) - prob.obs[k])[prob.roi[k]].sum() / m.scale ** 2)
+            out[i] = float(np.abs(cover(x) - prob.obs[k])[prob.roi[k]].sum() / m.scale ** 2)
     return out
 
 

@@ -404,6 +404,16 @@ def _free_pose_gap(model: RigidGapModel, obs: np.ndarray, roi: np.ndarray, theta
     return out
 
 
+def _fit_one_number(cost, bound: float, keep: float) -> float:
+    """The minimiser of ``cost`` on [-bound, bound] by Brent's bounded search, or ``keep`` (the
+    value before the fit) when that costs no more: the search can settle in a worse local minimum
+    of a rough cost, and a fit of one number must never leave the frame worse than it found it."""
+    from scipy.optimize import minimize_scalar
+
+    sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
+    return float(keep) if cost(float(keep)) <= float(sol.fun) else float(sol.x)
+
+
 def _heldout_time_fit(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, roi: np.ndarray,
                       test: np.ndarray, train: np.ndarray, placebo: bool = False) -> np.ndarray:
     """(F,) mismatch of each held-out frame after fitting its own time error alone (one number).
@@ -417,9 +427,9 @@ def _heldout_time_fit(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, 
     instead (perpendicular to the velocity in the image plane, as far as that time error would
     move the body along it: :meth:`Problem.placebo_jacobian`'s direction), the frame's time error
     left at the refit's. Equal count and size, no timing meaning: what a per-frame parameter
-    gains on a held-out frame without being a time error.
+    gains on a held-out frame without being a time error. Each fit keeps the frame's value before
+    it when the search finds nothing better (:func:`_fit_one_number`).
     """
-    from scipy.optimize import minimize_scalar
 
     sl = model.slices["time_jitter"]
     theta = np.asarray(theta, float)
@@ -444,8 +454,7 @@ def _heldout_time_fit(model: RigidGapModel, theta: np.ndarray, obs: np.ndarray, 
             a, ok = render(dt)
             return float(np.sum(((a[0] - obs[k]) * roi[k]) ** 2)) if ok else np.inf
 
-        sol = minimize_scalar(cost, bounds=(-bound, bound), method="bounded", options={"xatol": 1e-5})
-        a, ok = render(float(sol.x))
+        a, ok = render(_fit_one_number(cost, bound, 0.0 if placebo else theta[sl.start + k]))
         out[i] = float(np.abs(a[0] - obs[k])[roi[k]].sum() / model.scale ** 2) if ok else np.inf
     return out
 
