@@ -28,6 +28,15 @@ def shared_data():
     return d
 
 
+def strict_loads(text: str):
+    """json.loads that refuses NaN/Infinity tokens, as a browser's JSON.parse does."""
+    import json
+
+    def refuse(tok):
+        raise ValueError(f"non-strict token {tok}")
+    return json.loads(text, parse_constant=refuse)
+
+
 def assert_footage_holds_no_truth(folder) -> None:
     """No file of a synthetic footage folder carries truth entities or recordings (the reality stages
     keep the truth, their Rerun recordings and the true masks beside the folder; a real recording has

@@ -7,7 +7,6 @@ string "nan"/"inf"/"-inf" that ``restore_nonfinite`` turns back; the optimisers'
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -15,16 +14,12 @@ import pytest
 
 from vidsim.io.atomic import restore_nonfinite, to_json, write_json
 from vidsim.optim.cache import EvalCache
+from conftest import strict_loads
 
 DOC = {"a": float("nan"), "b": [1.5, float("inf"), {"c": -np.inf}], "arr": np.array([[0.25, np.nan], [np.inf, 2.0]]),
        "n": np.float32("nan"), "i": np.int64(3), "s": "text", "ok": None}
 
 
-def strict_loads(text: str):
-    """json.loads that refuses NaN/Infinity tokens, as a browser's JSON.parse does."""
-    def refuse(tok):
-        raise ValueError(f"non-strict token {tok}")
-    return json.loads(text, parse_constant=refuse)
 
 
 def test_write_json_is_strict_with_null_for_nonfinite_values(tmp_path):

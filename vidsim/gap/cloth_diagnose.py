@@ -30,9 +30,10 @@ frame of ``sum |a_sim - A_obs|``, the mismatch area in full-resolution pixels, s
 6. Forward selection judged on held-out frames, the rigid rule (``min_excess``, ``min_closure``,
    a conditional screen for a second effect with ``pairs``). Time jitter is judged as in the
    rigid domain: screened beyond an equally free placebo (:func:`placebo_jacobian`), named by its
-   training closure with white fitted errors (``jitter_min_white``), each held-out frame's own
-   error fitted on that frame; its errors are fitted only on frames that move enough to tell
-   their time (``jitter_min_motion_px``).
+   training closure with white fitted errors (``jitter_min_white``) and, on the held-out frames
+   (each frame's own error fitted on that frame), by beating the same one-number fit of the
+   placebo (:func:`heldout_placebo_fit`, :func:`vidsim.gap.rigid_diagnose.beats_placebo`); its
+   errors are fitted only on frames that move enough to tell their time (``jitter_min_motion_px``).
 7. Where: per frame with motion phases of the grips (fast/slow, turning, start/middle/end), the
    accumulated residual heatmap, per part of the cloth (each mismatched pixel charged to the
    triangle the rasteriser draws there, or at the nearest covered pixel, and the triangle to its
@@ -76,6 +77,7 @@ from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, 
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, frame_sandwich_cov, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _fit_one_number, _heldout_time_fit, _lag1, _white_fraction
+from vidsim.gap.rigid_diagnose import beats_placebo, jitter_search_bound
 from vidsim.io.atomic import atomic_path
 from vidsim.optim.cache import fingerprint
 
@@ -596,7 +598,7 @@ def heldout_time_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, train: 
 
     sl = prob.model.slices["time_jitter"]
     theta = np.asarray(theta, float)
-    bound = max(4.0 * float(np.std(theta[sl][train])), 5e-4)
+    bound = jitter_search_bound(theta[sl], train)
     out = np.zeros(len(test))
     for i, k in enumerate(test):
         pk = Problem(prob.model, prob.obs, prob.roi, np.array([k]), prob.steps, prob.fd_target_px, "moments")
@@ -620,11 +622,13 @@ def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, trai
     as much as that time error would move it along; the frame's time error left at the refit's),
     within the bound of :func:`heldout_time_fit`. Equal count and size as the held-out time fit,
     no timing meaning: what a per-frame parameter gains on a held-out frame without being a time
-    error. Rendered without blur (as the placebo's columns)."""
+    error. Rendered without blur or rolling shutter (as the placebo's columns), while the time fit
+    renders with them: in a model that already holds one of those effects the placebo starts from
+    a different image (none of the suite's jitter models does)."""
     m = prob.model
     theta = np.asarray(theta, float)
     sl = m.slices["time_jitter"]
-    bound = max(4.0 * float(np.std(theta[sl][train])), 5e-4)
+    bound = jitter_search_bound(theta[sl], train)
     P, V, ok = m.simulate(theta)
     if not ok:
         return np.full(len(test), np.inf)
@@ -1271,9 +1275,10 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         if ho0 - floor_mean <= cfg.min_excess * floor_mean or res.get("stuck_at_start"):
             return False
         if added == "time_jitter":
-            beats_placebo = (res["heldout_placebo_after_px"] - res["heldout_after_px"]) >= cfg.min_closure * (ho0 - floor_mean)
             return bool(train_closure(res, prev) >= cfg.min_closure
-                        and res["params"][added]["white_fraction"] >= cfg.jitter_min_white and beats_placebo)
+                        and res["params"][added]["white_fraction"] >= cfg.jitter_min_white
+                        and beats_placebo(res["heldout_after_px"], res["heldout_placebo_after_px"], ho0, floor_mean,
+                                          cfg.min_closure))
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
     def strength(res: dict, added: str, prev: dict | None) -> float | None:

@@ -218,10 +218,7 @@ def test_a_resumed_case_with_nonfinite_figures_scores_as_an_uninterrupted_run(tm
     """The case files are strict JSON (non-finite numbers as the strings "nan"/"inf"/"-inf", not NaN
     tokens); a resumed suite reads them back as floats, so its headline, shrinkage.csv and suite.json
     equal an uninterrupted run's (a null read back as "not measured" would have changed the headline)."""
-    def strict_loads(text: str):  # json.loads refusing NaN/Infinity tokens, as a browser's JSON.parse
-        def refuse(tok):
-            raise ValueError(f"non-strict token {tok}")
-        return json.loads(text, parse_constant=refuse)
+    from conftest import strict_loads
 
     crash = {"seed": None}
 
