@@ -622,9 +622,8 @@ def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, trai
     as much as that time error would move it along; the frame's time error left at the refit's),
     within the bound of :func:`heldout_time_fit`. Equal count and size as the held-out time fit,
     no timing meaning: what a per-frame parameter gains on a held-out frame without being a time
-    error. Rendered without blur or rolling shutter (as the placebo's columns), while the time fit
-    renders with them: in a model that already holds one of those effects the placebo starts from
-    a different image (none of the suite's jitter models does)."""
+    error. Rendered by the model as the time fit is (blur and rolling shutter included, the shift
+    added to every exposure sample)."""
     m = prob.model
     theta = np.asarray(theta, float)
     sl = m.slices["time_jitter"]
@@ -633,18 +632,15 @@ def heldout_placebo_fit(prob: Problem, theta: np.ndarray, test: np.ndarray, trai
     if not ok:
         return np.full(len(test), np.inf)
     cam = m._camera(theta)
-    g = m.setup.times
-    bias = float(theta[m.n_est])
-    H, W = cam.height, cam.width
     tc = m.capture_times(theta)
     out = np.zeros(len(test))
     for i, k in enumerate(np.asarray(test, int)):
-        uv0, perp = _across_motion(cam, g, P, V, tc[k])
+        _, perp = _across_motion(cam, m.setup.times, P, V, tc[k])
         pk = Problem(m, prob.obs, prob.roi, np.array([k]), prob.steps, prob.fd_target_px,
                      "moments" if prob.moments else "band")
 
-        def cover(s: float, uv0=uv0, perp=perp) -> np.ndarray:
-            return soft_coverage(uv0 + s * perp, m.tris, H, W, m.ramp, bias, m.boundary)
+        def cover(s: float, k=k, perp=perp) -> np.ndarray:
+            return m.render(theta, np.array([k]), (s * perp)[None])[0][0]
 
         def rows(s: float, k=k, pk=pk) -> np.ndarray:
             return pk.frame_rows(cover(s), 0) - pk.frame_rows(prob.obs[k], 0)

@@ -614,9 +614,12 @@ class ClothGapModel:
             m[self.slices["motion_blur"].start - self.n_base] = 0.0
         return m
 
-    def render(self, theta: np.ndarray, frames: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+    def render(self, theta: np.ndarray, frames: np.ndarray | None = None, duv: np.ndarray | None = None
+               ) -> tuple[np.ndarray, bool]:
         """Soft silhouettes (F, h, w) of the observed frames ``frames`` (indices into ``setup.obs``)
-        at this model's scale, and an ok flag (False: the simulation diverged; images are zeros)."""
+        at this model's scale, and an ok flag (False: the simulation diverged; images are zeros).
+        ``duv``: optional (F, N, 2) image offsets of the vertices, pixels at this scale, added to
+        every exposure sample of a frame (the time-jitter placebo's shift)."""
         idx = np.arange(self.setup.obs.size) if frames is None else np.asarray(frames, int)
         H, W = self.cam.height, self.cam.width
         verts, ok = self.frame_vertices(theta, idx)
@@ -626,7 +629,8 @@ class ClothGapModel:
         bias = float(np.asarray(theta, float)[self.n_est])
         out = np.zeros((len(idx), H, W))
         for i, samples in enumerate(verts):
-            cov = [soft_coverage(cam.project(v), self.tris, H, W, self.ramp, bias, self.boundary) for v in samples]
+            off = 0.0 if duv is None else np.asarray(duv[i], float)
+            cov = [soft_coverage(cam.project(v) + off, self.tris, H, W, self.ramp, bias, self.boundary) for v in samples]
             out[i] = np.mean(cov, axis=0)
             if len(cov) > 1 and self.blur_threshold is not None:
                 out[i] = segmented_blur(cov[len(cov) // 2], out[i], self.blur_threshold)
