@@ -560,7 +560,8 @@ def placebo_jacobian(prob: Problem, theta: np.ndarray) -> np.ndarray:
     ``time_jitter``): in frame k every vertex moves in the image *across* its own image velocity
     (the velocity turned by 90 degrees) by as much as a time error of frame k's jitter step moves it
     along. Same count and size as the jitter's columns, no timing meaning: what per-frame freedom
-    explains whatever the cause. Rendered without blur (the screen's point has none)."""
+    explains whatever the cause. Rendered without blur or rolling shutter (the first screen's point
+    has none; in a conditional screen after one of them is named the placebo's columns lack it)."""
     m = prob.model
     theta = np.asarray(theta, float)
     sl = m.slices["time_jitter"]
