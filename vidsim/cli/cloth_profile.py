@@ -9,7 +9,9 @@ others held (a slice; with ``cloth.profile.reoptimise_evals=N`` the others are r
 point, a profile proper, its evaluations logged to ``evals.jsonl`` for resuming), on the fitted
 trials together (E1 + E2, the selection's criterion); see :mod:`vidsim.clothfit.profile`.
 Writes ``profile.yaml`` (per parameter: estimate, ``determined``, indifference interval, its
-width as a fraction of the range; the loss's measured roughness and the tolerance it gave),
+width as a fraction of the range; the loss's measured roughness and the tolerance it gave;
+``stopped_short``: the parameters along which the profile found an error lower than the
+estimate's by more than that tolerance, i.e. where the fit stopped short, with a warning),
 ``profiles.csv`` and ``profiles.png`` (one panel per parameter; a flat profile is labelled
 "not determined").
 """
@@ -23,7 +25,7 @@ from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, read_selected
-from vidsim.clothfit.profile import profile_parameters
+from vidsim.clothfit.profile import profile_parameters, stopped_short
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log.progress import Progress
 from vidsim.optim import FAILED_SCORE
@@ -73,13 +75,19 @@ def run(cfg: DictConfig) -> None:
            "roughness_points": rough, "roughness_sd": rinfo["roughness_sd"], "tol_effective": rinfo["tol_effective"],
            "max_width": float(pc.max_width), "kind": "profile" if reopt else "slice",
            "reoptimise_evals": reopt, "profiles": {p.name: p.to_dict() for p in profs},
-           "not_determined": [p.name for p in profs if not p.determined]}
+           "not_determined": [p.name for p in profs if not p.determined],
+           # a slice or profile below the estimate by more than "as good": the fit stopped short there
+           "stopped_short": stopped_short(profs, rinfo["tol_effective"])}
     write_text(out / "profiles.csv", "parameter,unit_position,value,error\n" + "".join(
         f"{p.name},{u:.4f},{v:.6g},{e:.6g}\n" for p in profs for u, v, e in zip(p.u, p.values, p.errors)))
     _figure(profs, obj.space, rinfo["tol_effective"], out / "profiles.png", reopt)
     write_yaml(out / "profile.yaml", doc)
     print(f"profile_cloth: roughness sd {rinfo['roughness_sd']:.3g} (as good: within {rinfo['tol_effective']:.1%} of "
           f"the estimate); not determined by the footage: {doc['not_determined'] or 'none'}", flush=True)
+    for name, b in doc["stopped_short"].items():
+        print(f"profile_cloth: WARNING: along {name} the profile reaches E = {b['error']:.4g} at {b['value']:.4g}, below the "
+              f"estimate's {b['error_at_estimate']:.4g} by more than the 'as good' tolerance: the fit stopped short of "
+              f"it, so this estimate is where the search ended, not a minimum", flush=True)
 
 
 def _figure(profs, space, tol: float, path: Path, reopt: int = 0) -> None:

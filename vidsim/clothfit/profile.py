@@ -73,6 +73,23 @@ class Profile:
                 "profile_min_error": float(np.min(self.errors))}
 
 
+def stopped_short(profiles: list[Profile], tol: float) -> dict[str, dict]:
+    """The parameters along which a profile found an error below the estimate's by more than
+    ``tol`` (a fraction of it; pass the effective "as good" tolerance, which covers the loss's
+    measured roughness): there the fit stopped short of a better point, and its estimate and
+    interval along that axis describe where the search ended, not a minimum. Per parameter:
+    the better point's value and error, and the estimate's error."""
+    out = {}
+    for p in profiles:
+        ok = np.asarray(p.errors) < FAILED_SCORE
+        if not ok.any():
+            continue
+        k = int(np.argmin(np.where(ok, p.errors, np.inf)))
+        if float(p.errors[k]) < p.e_hat * (1.0 - float(tol)):
+            out[p.name] = {"value": float(p.values[k]), "error": float(p.errors[k]), "error_at_estimate": float(p.e_hat)}
+    return out
+
+
 def indifference_interval(u: np.ndarray, e: np.ndarray, u_hat: float, e_hat: float, tol: float) -> tuple[float, float]:
     """The connected range around ``u_hat`` where the (linearly interpolated) profile stays
     at or below ``e_hat (1 + tol)``; sorted ``u``; unit positions."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vidsim.clothfit.profile import indifference_interval, profile_parameters
+from vidsim.clothfit.profile import indifference_interval, profile_parameters, stopped_short
 from vidsim.optim.space import Space
 
 
@@ -142,3 +142,19 @@ def test_roughness_widens_as_good_on_a_chaotic_loss_and_not_on_a_smooth_one():
     for a, b in zip(pr, profile_parameters(rough, theta, points=9, tol=0.05)):
         assert a.interval_u[0] <= b.interval_u[0] and a.interval_u[1] >= b.interval_u[1]
     assert roughness(lambda u: 1.0, np.array([0.5]), 1.0, 0) == 0.0
+
+
+def test_a_profile_below_the_estimate_is_reported_as_stopped_short():
+    # the estimate sits off the bowl's minimum along 'stiff' (u0 = 0.6: E = 4.6 against 1.0 at 0.3)
+    # and at it along 'flat' up to its 0.02 slope, which the tolerance covers
+    obj = _Bowl()
+    theta = obj.space.from_unit(np.array([0.6, 0.0]))
+    profs = profile_parameters(obj, theta, points=11, tol=0.05, max_width=0.5)
+    short = stopped_short(profs, tol=0.05)
+    assert list(short) == ["stiff"]
+    assert short["stiff"]["error"] == pytest.approx(1.0 + 40.0 * (0.3 - 0.3) ** 2, abs=1e-9)
+    assert short["stiff"]["value"] == pytest.approx(float(obj.space.from_unit(np.array([0.3, 0.0]))[0]))
+    assert short["stiff"]["error_at_estimate"] == pytest.approx(1.0 + 40.0 * 0.09)
+    # at the minimum nothing is reported
+    at_min = profile_parameters(_Bowl(), obj.space.from_unit(np.array([0.3, 0.0])), points=11, tol=0.05)
+    assert stopped_short(at_min, tol=0.05) == {}
