@@ -83,13 +83,35 @@ class Obstacle:
     """A collision object: a box ``[x0,y0,x1,y1]`` or an ellipse (center, radii); zero velocity.
     ``in_footage``: the solid is in the footage at this place (a PIV recording's cylinder), so the
     render shows the footage's own pixels there and takes no fluid texture from it; otherwise it
-    is added by the edit and rendered from velocity-matched patches (solid texture if the footage
-    has an ``in_footage`` obstacle)."""
+    is added by the edit and rendered (``render.added_obstacles``) as the appearance of an
+    ``in_footage`` obstacle mapped onto its shape (:meth:`EditSpec.transplant_sources`), or from
+    velocity-matched patches (solid texture if the footage has an ``in_footage`` obstacle)."""
 
     box: Box | None = None
     center: tuple[float, float] | None = None
     radii: tuple[float, float] | None = None
     in_footage: bool = False
+
+    def mask(self, h: int, w: int) -> np.ndarray:
+        """``(h, w)`` bool: the grid nodes this obstacle covers."""
+        if self.box is not None:
+            m = np.zeros((h, w), bool)
+            x0, y0, x1, y1 = self.box
+            m[y0:y1, x0:x1] = True
+            return m
+        yy, xx = np.mgrid[0:h, 0:w]
+        return ((xx - self.center[0]) / self.radii[0]) ** 2 + ((yy - self.center[1]) / self.radii[1]) ** 2 <= 1.0
+
+    def extent(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Centre ``(x, y)`` and half-size ``(x, y)`` in nodes of the area the obstacle's node cells
+        cover (each node a cell one node wide): a box ``[x0, y0, x1, y1]`` has centre
+        ``((x0 + x1 - 1) / 2, (y0 + y1 - 1) / 2)`` and half-size ``((x1 - x0) / 2, (y1 - y0) / 2)``;
+        an ellipse its ``center`` and ``radii + 1/2`` (the cells of its rim nodes reach half a
+        node past it)."""
+        if self.box is not None:
+            x0, y0, x1, y1 = self.box
+            return ((x0 + x1 - 1) / 2, (y0 + y1 - 1) / 2), ((x1 - x0) / 2, (y1 - y0) / 2)
+        return self.center, (self.radii[0] + 0.5, self.radii[1] + 0.5)
 
 
 @dataclass(frozen=True)
@@ -145,7 +167,10 @@ class RenderSettings:
     candidates are drawn at random within it (0: K nearest only); ``usage``: weight of
     uniform use of the source (0: off); ``blend``: "linear" feathering or "variance"
     (contrast-preserving, for stochastic textures such as PIV particles); ``resample``:
-    "cubic" (Catmull-Rom) or "linear" sampling of sub-pixel source positions."""
+    "cubic" (Catmull-Rom) or "linear" sampling of sub-pixel source positions;
+    ``added_obstacles``: "transplant" (an obstacle the edit adds shows the footage's temporal
+    median of an ``in_footage`` obstacle, mapped onto its shape; patches without one) or
+    "patches" (texture patches, solid texture if the footage has an ``in_footage`` obstacle)."""
 
     patch: int = 12
     overlap: int = 4
@@ -157,6 +182,7 @@ class RenderSettings:
     usage: float = 1.0
     blend: str = "linear"
     resample: str = "cubic"
+    added_obstacles: str = "transplant"
 
 
 @dataclass(frozen=True)
@@ -331,7 +357,8 @@ class EditSpec:
         if not isinstance(ds, int) or ds < 1:
             raise EditSpecError(f"downsample={ds!r}, expected an integer >= 1")
         rd = dict(_keys(d.get("render", {}) or {}, "render", {"patch", "overlap", "k", "frames", "mode", "seed",
-                                                               "velocity_noise", "usage", "blend", "resample"}))
+                                                               "velocity_noise", "usage", "blend", "resample",
+                                                               "added_obstacles"}))
         for key, lo in (("patch", 4), ("overlap", 0), ("k", 1), ("frames", 1), ("seed", 0)):
             if key in rd and (not isinstance(rd[key], int) or rd[key] < lo):
                 raise EditSpecError(f"render.{key}={rd[key]!r}, expected an integer >= {lo}")
@@ -339,7 +366,7 @@ class EditSpec:
             if key in rd:
                 rd[key] = _pos(rd[key], f"render.{key}", 0.0, 10.0)
         for key, allowed in (("mode", ("advected", "fixed")), ("blend", ("linear", "variance")),
-                             ("resample", ("cubic", "linear"))):
+                             ("resample", ("cubic", "linear")), ("added_obstacles", ("transplant", "patches"))):
             if key in rd and rd[key] not in allowed:
                 raise EditSpecError(f"render.{key}={rd[key]!r}, expected one of {list(allowed)}")
         rs = RenderSettings(**rd)
@@ -354,16 +381,33 @@ class EditSpec:
         """``(H, W)`` bool obstacle nodes; ``in_footage`` True/False: only the obstacles that are
         / are not in the footage (None: all)."""
         solid = np.zeros((self.height, self.width), bool)
-        yy, xx = np.mgrid[0:self.height, 0:self.width]
         for o in self.obstacles:
-            if in_footage is not None and o.in_footage != in_footage:
-                continue
-            if o.box is not None:
-                x0, y0, x1, y1 = o.box
-                solid[y0:y1, x0:x1] = True
-            else:
-                solid |= ((xx - o.center[0]) / o.radii[0]) ** 2 + ((yy - o.center[1]) / o.radii[1]) ** 2 <= 1.0
+            if in_footage is None or o.in_footage == in_footage:
+                solid |= o.mask(self.height, self.width)
         return solid
+
+    def transplant_sources(self) -> tuple[int | None, ...]:
+        """Per obstacle, the index of the ``in_footage`` obstacle whose appearance an added
+        obstacle is drawn with (``render.added_obstacles: transplant``); None for the
+        ``in_footage`` obstacles themselves and for every obstacle when none is declared
+        ``in_footage``. The rule: among the ``in_footage`` obstacles of the same kind (ellipse or
+        box; any kind if there is none), the least deformation, the smallest
+        ``|log sx| + |log sy|`` of the per-axis scale between the two half-sizes
+        (:meth:`Obstacle.extent`), so the closest in size and aspect; ties go to the first declared."""
+        shown = [i for i, o in enumerate(self.obstacles) if o.in_footage]
+        out: list[int | None] = []
+        for o in self.obstacles:
+            if o.in_footage or not shown:
+                out.append(None)
+                continue
+            same = [i for i in shown if (self.obstacles[i].box is None) == (o.box is None)] or shown
+            half = o.extent()[1]
+
+            def deformation(i: int) -> float:
+                hs = self.obstacles[i].extent()[1]
+                return abs(np.log(hs[0] / half[0])) + abs(np.log(hs[1] / half[1]))
+            out.append(min(same, key=deformation))
+        return tuple(out)
 
     def _check_reachable(self) -> None:
         solid = self.solid_mask()

@@ -19,7 +19,7 @@ from vidsim.fluid.flow import FlowMethod, estimate_flow
 from vidsim.fluid.metrics import (MIN_STATIC_PX, compensated_flicker, detail_contrast, obstacle_grey, patch_distance_ratio,
                                   relative_epe, rendered_flow_epe_frames, static_flicker)
 from vidsim.fluid.optimize import EditResult, edit_field
-from vidsim.fluid.render import downsample_flow, render_sequence, upsample_field
+from vidsim.fluid.render import Transplant, downsample_flow, render_sequence, upsample_field
 
 
 class UndeclaredObstacleWarning(UserWarning):
@@ -51,6 +51,26 @@ def video_fields(flow: np.ndarray, spec: EditSpec) -> np.ndarray:
                             f"smaller than the edit's grid {spec.width}x{spec.height} (width, height): give the edit a "
                             f"grid of at most {g.shape[2]}x{g.shape[1]}, or a smaller downsample")
     return g[:, :spec.height, :spec.width]
+
+
+def obstacle_transplants(spec: EditSpec, size: tuple[int, int]) -> list[Transplant]:
+    """The obstacles the edit adds, as :class:`Transplant` s on the ``size`` = (H, W) output
+    (nodes of ``spec.downsample`` px; node ``n`` covers pixels ``[n ds, (n + 1) ds)``, so its
+    centre is pixel ``n ds + (ds - 1) / 2``), each from the ``in_footage`` obstacle
+    :meth:`EditSpec.transplant_sources` chooses; none without an ``in_footage`` obstacle."""
+    H, W = size
+    ds = spec.downsample
+    out = []
+    for o, j in zip(spec.obstacles, spec.transplant_sources()):
+        if j is None:
+            continue
+        (cx, cy), (hx, hy) = o.extent()
+        (sx, sy), (gx, gy) = spec.obstacles[j].extent()
+        mask = cv2.resize(o.mask(spec.height, spec.width).astype(np.uint8), (W, H),
+                          interpolation=cv2.INTER_NEAREST).astype(bool)
+        out.append(Transplant(mask, (cx * ds + (ds - 1) / 2, cy * ds + (ds - 1) / 2),
+                              (sx * ds + (ds - 1) / 2, sy * ds + (ds - 1) / 2), (gx / hx, gy / hy)))
+    return out
 
 
 def undeclared_obstacle_message(u: dict[str, Any]) -> str:
@@ -159,9 +179,11 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
                             .astype(bool) for f in (None, True))
     field_px[solid_px] = 0.0
     # the edit was optimised against the time-mean flow: match velocity patches on it too; the
-    # obstacles in the footage show its own pixels
+    # obstacles in the footage show its own pixels, the ones the edit adds their appearance
+    transplants = obstacle_transplants(spec, (H, W)) if spec.render.added_obstacles == "transplant" else []
     out, rfig = render_sequence(src_frames[:, :H, :W], flow[:, :H, :W], field_px, n, rng, spec.render, solid_px,
-                                match_flow=flow[:, :H, :W].mean(0), footage_solid=footage_px, on_frame=on_frame)
+                                match_flow=flow[:, :H, :W].mean(0), footage_solid=footage_px,
+                                transplants=transplants, on_frame=on_frame)
     figs: dict[str, Any] = {"edit": dict(res.figures), "render": rfig, "undeclared_obstacles": undeclared}
     # streamlines end in their sink (the optimiser's figure); how many particles would get there
     # within the rendered clip, moving at the field's speed (frames = nodes / (nodes/frame))

@@ -25,7 +25,10 @@ into the synthesised fluid over ``overlap`` px outside the obstacle's edge (:fun
 No fluid patch takes texture from what that fill shows: the candidates touching it are left out
 of the fluid's pool, and a patch whose source window would drift onto it stops there and fades
 out. Obstacles the edit
-adds take their texture from windows centred in the footage's obstacles (solid texture).
+adds (``transplants``) show the same median image of one of the footage's obstacles, mapped onto
+their shape (:class:`Transplant`) and blended like the fill, and no patch is spawned centred in
+them; without ``transplants`` they take their texture from windows centred in the footage's
+obstacles (solid texture).
 * ``"fixed"``: each output patch keeps its source window and plays the source forward in time
   (motion then equals the source motion at the matched patch).
 
@@ -268,6 +271,28 @@ def obstacle_alpha(mask: np.ndarray, width: float) -> np.ndarray:
     return np.where(m, 1.0, np.clip(1.0 - (d_out - 0.5) / max(float(width), 1.0), 0.0, 1.0))
 
 
+@dataclass(frozen=True)
+class Transplant:
+    """An obstacle the edit adds, drawn with the appearance of an obstacle in the footage: output
+    pixel ``(x, y)`` shows the source's per-pixel temporal median at
+    ``src_center + scale * ((x, y) - center)`` (px, per axis; ``scale`` = the footage obstacle's
+    half-size over the added one's), over ``mask`` ``(H, W)`` bool (the added obstacle) at
+    opacity 1 and a ramp outside it (:func:`obstacle_alpha`), like an obstacle in the footage."""
+
+    mask: np.ndarray
+    center: tuple[float, float]
+    src_center: tuple[float, float]
+    scale: tuple[float, float]
+
+    def image(self, median: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+        """``(H, W, C)`` the ``median`` (source-sized, float) mapped onto the output (bilinear,
+        edge pixels repeated past the source's border)."""
+        yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float32)
+        mx = (self.src_center[0] + self.scale[0] * (xx - self.center[0])).astype(np.float32)
+        my = (self.src_center[1] + self.scale[1] * (yy - self.center[1])).astype(np.float32)
+        return cv2.remap(np.asarray(median, np.float32), mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
 def _touches(integral: np.ndarray, y: np.ndarray, x: np.ndarray, p: int) -> np.ndarray:
     """Whether the ``p x p`` windows with top-left (y, x) (ints, inside the frame) hold any set
     pixel of the mask whose summed-area table (padded by one row and column) is ``integral``."""
@@ -499,6 +524,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                     solid: np.ndarray | None = None,
                     match_flow: np.ndarray | None = None,
                     footage_solid: np.ndarray | None = None,
+                    transplants: list[Transplant] | tuple[Transplant, ...] = (),
                     on_frame: Callable[[int], None] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """Render ``n_frames`` of the edited field by texture transfer from the source video.
 
@@ -519,7 +545,11 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             the same place (output pixel = source pixel): they show the source's temporal median,
             blended over ``overlap`` px outside their edge, and no fluid patch takes texture from
             what that fill shows; the rest of ``solid`` (obstacles the edit adds) takes texture
-            from windows centred in them.
+            from windows centred in them, unless they are ``transplants``.
+        transplants: obstacles the edit adds, each drawn as the source's temporal median of an
+            obstacle in the footage mapped onto its shape (:class:`Transplant`), blended like
+            ``footage_solid``'s fill; no patch is spawned centred in them, and where that leaves
+            their ring less than fully covered, the patches count by their coverage.
         on_frame: optional callback ``on_frame(n)`` after output frame ``n`` (progress lines).
 
     Returns:
@@ -570,13 +600,28 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             raise RenderInputError(f"footage_solid shape {fs.shape}, expected {(H, W)}")
         # a solid in the footage is static: the per-pixel temporal median of the source is its
         # appearance without camera noise and passing fluid (and needs no clip as long as the output)
-        fill = np.median(src[:, :H, :W], axis=0)
+        median = np.median(src, axis=0)
+        fill = median[:H, :W]
         fill_alpha = obstacle_alpha(fs, o)[..., None]
         blocked = np.zeros(src.shape[1:3], bool)
         blocked[:H, :W] = fill_alpha[..., 0] > 0
         src_solid = np.zeros(src.shape[1:3], bool)
         src_solid[:H, :W] = fs
         added = None if solid is None else np.asarray(solid, bool) & ~fs
+    tp_colour = tp_alpha = hide = None
+    if len(transplants):
+        if fill is None:
+            median = np.median(src, axis=0)
+        tp_colour, tp_alpha = np.zeros((H, W, 3)), np.zeros((H, W, 1))
+        for tp in transplants:
+            if np.shape(tp.mask) != (H, W):
+                raise RenderInputError(f"transplant mask shape {np.shape(tp.mask)}, expected {(H, W)}")
+            a = obstacle_alpha(tp.mask, o)[..., None]
+            tp_colour = a * tp.image(median, (H, W)) + (1.0 - a) * tp_colour  # premultiplied, later on top
+            tp_alpha = a + (1.0 - a) * tp_alpha
+        hide = np.any([np.asarray(tp.mask, bool) for tp in transplants], axis=0)
+        if added is not None:
+            added = np.asarray(added, bool) & ~hide
     sel = PatchSelector(src, mflow, p, s.k, min_life, seed=int(rng.integers(1 << 31)),
                         velocity_noise=s.velocity_noise, usage_weight=s.usage, blocked=blocked, solid=src_solid)
     step = p - o
@@ -584,6 +629,14 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     # (an inflow edge otherwise opens an uncovered strip as soon as its patches move in)
     grid_y = np.unique(np.r_[np.arange(-o, H - p + o + 1, step), H - p + o])
     grid_x = np.unique(np.r_[np.arange(-o, W - p + o + 1, step), W - p + o])
+    # cells beside a transplanted obstacle (their window reaches its fill) and, padded like the
+    # accumulator, the pixels no fill covers
+    beside: set[tuple[int, int]] = set()
+    if hide is not None:
+        exposed = np.pad(tp_alpha[..., 0] == 0, o, constant_values=False)
+        shown = np.pad(tp_alpha[..., 0] > 0, o, constant_values=False)
+        beside = {(gy, gx) for gy in grid_y for gx in grid_x if not hide[gy + p // 2, gx + p // 2]
+                  and shown[gy + o:gy + p + o, gx + o:gx + p + o].any()}
     advect = s.mode == "advected"
     cubic = s.resample == "cubic"
     corr_len = correlation_length(src_frames)
@@ -675,17 +728,33 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         for gy in grid_y:
             for gx in grid_x:
                 cov = accum[gy + 2 * o:gy + p, gx + 2 * o:gx + p, _W]
-                if cov.size and (cov.mean() < 0.9 or cov.min() < 1e-6):
+                bare = cov.size and cov.min() < 1e-6
+                if (gy, gx) in beside:
+                    # the cell centred in the obstacle spawns nothing: bare pixels the fill does not
+                    # hide anywhere in this window (not only its own part) call for a patch here
+                    bare = bare or bool((accum[gy + o:gy + p + o, gx + o:gx + p + o, _W] < 1e-6)[
+                        exposed[gy + o:gy + p + o, gx + o:gx + p + o]].any())
+                if cov.size and (cov.mean() < 0.9 or bare):
+                    if hide is not None and hide[gy + p // 2, gx + p // 2]:
+                        continue  # a transplanted obstacle: its fill, not a patch
                     if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2:
                         continue
                     # a patch spawned here is still fading in: wait for it unless pixels are bare
-                    if n - last_spawn.get((gy, gx), -fade) < fade and cov.min() >= 1e-6:
+                    if n - last_spawn.get((gy, gx), -fade) < fade and not bare:
                         continue
                     last_spawn[(gy, gx)] = n
                     spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
         img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
         if fill is not None:
             img = fill_alpha * fill + (1.0 - fill_alpha) * img
+        if tp_colour is not None:
+            # no patch is centred in a transplanted obstacle: in its ring the patches count by
+            # their coverage (a bare pixel shows the fill alone, not black)
+            c = np.minimum(accum[o:o + H, o:o + W, _W], 1.0)[..., None]
+            if fill is not None:
+                c = fill_alpha + (1.0 - fill_alpha) * c
+            over = (tp_colour + (1.0 - tp_alpha) * c * img) / np.maximum(tp_alpha + (1.0 - tp_alpha) * c, 1e-9)
+            img = np.where(tp_alpha > 0, over, img)
         out[n] = np.clip(img * 255.0 + 0.5, 0, 255).astype(np.uint8)
         n_live.append(len(P.cx))
         if on_frame is not None:
@@ -694,7 +763,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
             "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "mode": s.mode,
             "source_temporal": temporal, "source_candidates": len(sel.feats),
-            "source_candidates_fluid": len(sel.pools["fluid"])}
+            "source_candidates_fluid": len(sel.pools["fluid"]), "transplanted_obstacles": len(transplants)}
     return out, figs
 
 

@@ -67,6 +67,40 @@ def test_obstacles_in_the_footage_apart_from_added_ones():
          r"obstacles\[0\]\.in_footage='yes', expected true or false")
 
 
+def test_added_obstacles_take_the_closest_footage_obstacle():
+    """An added obstacle is drawn from the ``in_footage`` obstacle of its kind with the least
+    deformation (|log sx| + |log sy| between the half-sizes), ties to the first declared; none
+    without an ``in_footage`` obstacle. Half-sizes: an ellipse's radii + 1/2, a box's half side."""
+    d = copy.deepcopy(BASE)
+    d["obstacles"] = [{"center": [5.0, 12.0], "radii": [3.0, 1.5], "in_footage": True},   # 0
+                      {"center": [5.0, 20.0], "radii": [1.5, 1.5], "in_footage": True},   # 1
+                      {"box": [26, 10, 30, 13], "in_footage": True},                      # 2
+                      {"center": [15.0, 12.0], "radii": [2.5, 1.0]},                      # 3: closest to 0
+                      {"center": [15.0, 20.0], "radii": [1.0, 1.0]},                      # 4: closest to 1
+                      {"box": [10, 15, 14, 19]}]   # 5: the box 2, though the ellipse 1 has its size
+    spec = EditSpec.from_dict(d)
+    assert spec.transplant_sources() == (None, None, None, 0, 1, 2)
+    assert spec.obstacles[2].extent() == ((27.5, 11.0), (2.0, 1.5))
+    assert spec.obstacles[3].extent() == ((15.0, 12.0), (3.0, 1.5))
+    assert spec.obstacles[5].extent()[1] == spec.obstacles[1].extent()[1] == (2.0, 2.0)
+    # a tie (two equal footage obstacles) goes to the first declared; no footage obstacle: none
+    d["obstacles"] = [d["obstacles"][1], {"center": [25.0, 20.0], "radii": [1.5, 1.5], "in_footage": True},
+                      {"center": [15.0, 20.0], "radii": [1.0, 1.0]}]
+    assert EditSpec.from_dict(d).transplant_sources() == (None, None, 0)
+    d["obstacles"] = [{"center": [15.0, 20.0], "radii": [1.0, 1.0]}]
+    assert EditSpec.from_dict(d).transplant_sources() == (None,)
+
+
+def test_added_obstacles_switch():
+    assert EditSpec.from_dict(BASE).render.added_obstacles == "transplant"
+    d = copy.deepcopy(BASE)
+    d["render"] = {"added_obstacles": "patches"}
+    assert EditSpec.from_dict(d).render.added_obstacles == "patches"
+    _bad(lambda d: d.update(render={"added_obstacles": "paint"}),
+         r"render\.added_obstacles='paint', expected one of \['transplant', 'patches'\]")
+    _bad(lambda d: d.update(render={"added_obstacle": "patches"}), r"render: unknown key\(s\) \['added_obstacle'\]")
+
+
 def test_touching_sinks_are_accepted():
     d = copy.deepcopy(BASE)
     d["sinks"][1]["box"] = [10, 28, 32, 31]  # shares the edge x = 10 with sink a, no node in both

@@ -12,8 +12,8 @@ from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid import render as render_mod
 from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio,
                                   relative_epe, rendered_flow_epe, static_flicker, static_mask)
-from vidsim.fluid.pipeline import run_edit
-from vidsim.fluid.render import RenderInputError, _compose, _consistency, obstacle_alpha, render_sequence
+from vidsim.fluid.pipeline import obstacle_transplants, run_edit
+from vidsim.fluid.render import RenderInputError, Transplant, _compose, _consistency, obstacle_alpha, render_sequence
 from vidsim.reality.fluid import make_scene
 
 
@@ -189,6 +189,13 @@ def test_run_edit_second_boat(stream):
     # wired in, not a quality figure, which the report gives without a verdict)
     assert abs(f["footage_obstacle_grey_output"] - f["footage_obstacle_grey_source"]) <= 1.0
     assert "footage_obstacle_grey_diff_max" not in f
+    # the added boat is drawn as the footage's (flat-coloured) boat, mapped onto its ellipse
+    assert f["render"]["transplanted_obstacles"] == 1
+    yy, xx = np.mgrid[0:96, 0:96]
+    core = ((xx - 68.5) / 9.0) ** 2 + ((yy - 26.5) / 3.4) ** 2 <= 1  # 1 px in from its 11 x 5.4 px half-sizes
+    boat = r["frames"][:, core].astype(np.float64).mean(-1)
+    print("added boat grey", boat.mean(), boat.std(), "footage boat", frames[:, 48, 36].mean(-1).mean())
+    assert abs(boat.mean() - 70.0) <= 2.0 and boat.std() <= 2.0  # boat colour (120, 60, 30)
     # static flicker on one mask: here the only static pixels are the boats, declared obstacles,
     # so it is not measurable (each sequence's own static region held boats: output the two
     # declared ones, source the footage's boat)
@@ -206,10 +213,10 @@ def test_bad_render_input(stream):
 RED = (210, 40, 30)
 
 
-def _still_red_disc(T: int = 20, H: int = 48, W: int = 64):
-    """A blue-grey texture (red channel below its green everywhere) moving right 1 px/frame past a
-    still red disc (centre pixel (40, 24), radius 8 px), camera noise sigma 2 grey levels on
-    both: any red seen outside the disc came from the disc."""
+def _still_red_disc(T: int = 20, H: int = 48, W: int = 64, colour=RED):
+    """A blue-grey texture (red channel below its green everywhere, grey 73-167) moving right 1
+    px/frame past a still disc of ``colour`` (centre pixel (40, 24), radius 8 px), camera noise
+    sigma 2 grey levels on both: any red seen outside a red disc came from the disc."""
     import cv2
 
     rng = np.random.default_rng(3)
@@ -221,7 +228,7 @@ def _still_red_disc(T: int = 20, H: int = 48, W: int = 64):
     fr = []
     for t in range(T):
         f = fluid[:, T - t:T - t + W].copy()
-        f[disc] = RED
+        f[disc] = colour
         fr.append(f + rng.normal(0, 2, f.shape))
     return np.clip(np.stack(fr), 0, 255).round().astype(np.uint8), disc
 
@@ -232,7 +239,7 @@ def red_disc():
     return frames, disc, estimate_flow(frames)
 
 
-def _render_with_disc(frames, disc, flow, added, footage: bool, monkeypatch=None):
+def _render_with_disc(frames, disc, flow, added, footage: bool, monkeypatch=None, transplants=()):
     """Render the texture flowing right at 0.5 px/frame, zero on the obstacles (the footage's disc
     and ``added``); returns the output and the selector's picks (pool, (t, y, x))."""
     field = np.zeros(disc.shape + (2,))
@@ -249,7 +256,8 @@ def _render_with_disc(frames, disc, flow, added, footage: bool, monkeypatch=None
         monkeypatch.setattr(render_mod.PatchSelector, "select", spy)
     s = RenderSettings(patch=8, overlap=2)
     out, figs = render_sequence(frames, flow, field, 16, np.random.default_rng(0), s, solid=disc | added,
-                                match_flow=flow.mean(0), footage_solid=disc if footage else None)
+                                match_flow=flow.mean(0), footage_solid=disc if footage else None,
+                                transplants=transplants)
     return out, picks, figs
 
 
@@ -292,3 +300,108 @@ def test_obstacle_in_footage_shows_the_footage(red_disc, monkeypatch):
     print("before: red px in the fluid", int((ro > go)[:, far].sum()),
           "max |output - median| in the disc", np.abs(old[:, disc] - med[disc]).max())
     assert np.any((ro > go)[:, far])
+
+
+@pytest.fixture(scope="module")
+def dark_disc():
+    frames, disc = _still_red_disc(colour=(10, 10, 10))
+    return frames, disc, estimate_flow(frames)
+
+
+def test_added_obstacle_is_drawn_as_the_footage_obstacle(dark_disc, monkeypatch):
+    """An added disc (centre (14, 24), radius 6 px) transplanted from the footage's dark disc
+    (centre (40, 24), radius 8 px, grey 10): dark over its whole shape and nowhere else, in every
+    frame: 1 px in from its outline grey < 20, 2-8 px outside it (past the fill's 2 px ramp) the
+    fluid (grey >= 73) shows; no patch is spawned centred in it. (On the outline itself the two
+    pixel discs are not exact scaled copies: a rim pixel may sample the footage disc's rim.)
+    From patches (``transplants`` empty, as before) it is blocky: dark squares reach past its
+    outline or fluid shows inside it."""
+    frames, disc, flow = dark_disc
+    yy, xx = np.mgrid[0:disc.shape[0], 0:disc.shape[1]]
+    added = (xx - 14) ** 2 + (yy - 24) ** 2 <= 6**2
+    d_out = np.hypot(xx - 14, yy - 24) - 6  # distance outside the added disc's outline (px)
+    inside = d_out <= -1
+    centres = []
+    append = render_mod._Patches.append
+
+    def spy(self, cx, cy, *a, **k):
+        centres.append((cy + 4, cx + 4))  # patch 8: its centre pixel
+        return append(self, cx, cy, *a, **k)
+    monkeypatch.setattr(render_mod._Patches, "append", spy)
+    tp = Transplant(added, (14.0, 24.0), (40.0, 24.0), (8 / 6, 8 / 6))
+    out, _, figs = _render_with_disc(frames, disc, flow, added, True, transplants=[tp])
+    g = out.astype(np.float64).mean(-1)
+    ring = (d_out >= 2) & (d_out <= 8)
+    print("transplant: inside max", g[:, inside].max(), "ring 2-8 px out min", g[:, ring].min(), figs)
+    assert figs["transplanted_obstacles"] == 1
+    assert g[:, inside].max() < 20 and g[:, ring].min() > 40
+    assert centres and not any(added[int(y), int(x)] for y, x in centres
+                               if 0 <= y < added.shape[0] and 0 <= x < added.shape[1])
+    # before: drawn from patches (solid texture from windows centred on the footage's disc)
+    old, _, _ = _render_with_disc(frames, disc, flow, added, True)
+    go = old.astype(np.float64).mean(-1)
+    print("patches: inside max", go[:, inside].max(), "ring 2-8 px out min", go[:, ring].min())
+    assert go[:, inside].max() >= 20 or go[:, ring].min() <= 40
+
+
+def test_transplant_maps_an_ellipse_onto_one_of_other_radii():
+    """The affine map between two declared ellipses of different radii (nodes of 2 px): centres
+    at pixel ``n ds + (ds - 1) / 2``, scale the ratio of the half-sizes ``(r + 1/2) ds``. A
+    footage image holding the footage ellipse's area (half-sizes 17.6 x 8 px), transplanted,
+    covers the added ellipse's (11 x 5 px): IoU >= 0.95, centroid within 0.25 px, extent within
+    1 px per axis; the translation alone (scale 1) does not fit."""
+    spec = EditSpec.from_dict({
+        "grid": {"height": 40, "width": 48}, "downsample": 2,
+        "sources": [{"box": [0, 2, 1, 38], "distribution": "out"}], "sinks": [{"name": "out", "box": [47, 1, 48, 39]}],
+        "obstacles": [{"center": [30.0, 12.0], "radii": [8.3, 3.5], "in_footage": True},
+                      {"center": [14.0, 28.0], "radii": [5.0, 2.0]}]})
+    H, W = 80, 96
+    (tp,) = obstacle_transplants(spec, (H, W))
+    assert tp.center == (28.5, 56.5) and tp.src_center == (60.5, 24.5)
+    assert tp.scale == pytest.approx((8.8 / 5.5, 4.0 / 2.5))
+    assert tp.mask.shape == (H, W) and tp.mask[56, 28] and tp.mask.sum() == 31 * 4  # its 31 nodes
+    yy, xx = np.mgrid[0:H, 0:W]
+    src = ((xx - 60.5) / 17.6) ** 2 + ((yy - 24.5) / 8.0) ** 2 <= 1
+    want = ((xx - 28.5) / 11.0) ** 2 + ((yy - 56.5) / 5.0) ** 2 <= 1
+    med = np.repeat(src[..., None], 3, -1).astype(np.float32)  # the footage: 1 on its ellipse
+
+    def fit(t):
+        m = t.image(med, (H, W))[..., 0] > 0.5
+        iou = (m & want).sum() / (m | want).sum()
+        (y, x), (ty, tx) = np.argwhere(m).mean(0), np.argwhere(want).mean(0)
+        ext = np.ptp(np.argwhere(m), 0) - np.ptp(np.argwhere(want), 0)
+        return iou, np.hypot(y - ty, x - tx), np.abs(ext).max()
+    iou, off, ext = fit(tp)
+    shifted = fit(Transplant(tp.mask, tp.center, tp.src_center, (1.0, 1.0)))
+    print("IoU", iou, "centroid offset px", off, "extent px", ext, "translation only:", shifted)
+    assert iou >= 0.95 and off <= 0.25 and ext <= 1
+    assert shifted[0] < 0.7
+
+
+def test_added_obstacles_fall_back_to_patches(stream, monkeypatch):
+    """What ``run_edit`` hands the renderer: a transplant for the added boat when the footage's
+    boat is declared ``in_footage``; none (patches, as before) without an ``in_footage``
+    obstacle or with ``render.added_obstacles: patches``."""
+    import vidsim.fluid.pipeline as pipeline_mod
+
+    frames, flow = stream
+    seen = []
+
+    class Stop(Exception):
+        pass
+
+    def fake_render(*a, transplants=(), **k):
+        seen.append(list(transplants))
+        raise Stop
+    monkeypatch.setattr(pipeline_mod, "render_sequence", fake_render)
+    footage = {"center": [18.0, 24.0], "radii": [6.0, 2.7], "in_footage": True}
+    added = {"center": [34.0, 13.0], "radii": [5.0, 2.2]}
+    for obstacles, render in (([footage, added], {}), ([added], {}), ([footage, added], {"added_obstacles": "patches"})):
+        spec = EditSpec.from_dict({
+            "grid": {"height": 48, "width": 48}, "downsample": 2,
+            "sources": [{"box": [0, 2, 1, 46], "distribution": "out"}], "sinks": [{"name": "out", "box": [47, 1, 48, 47]}],
+            "obstacles": obstacles, "optimizer": {"iterations": 0}, "render": {"frames": 2, **render}})
+        with pytest.raises(Stop):
+            run_edit(frames, spec, np.random.default_rng(0), flow=flow)
+    assert [len(t) for t in seen] == [1, 0, 0]
+    assert seen[0][0].src_center == (36.5, 48.5) and seen[0][0].center == (68.5, 26.5)
