@@ -187,13 +187,15 @@ def test_cloth_reality_settings_are_named_by_their_config_keys(tmp_path, overrid
     assert r.returncode == 2 and expected in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
-@pytest.mark.parametrize("override", ["cloth.twin.perturb_sigma=-0.1", "cloth.twin.perturb_draws=-1"])
+@pytest.mark.parametrize("override", ["cloth.twin.perturb_sigma=-0.1", "cloth.twin.perturb_draws=-1",
+                                      "cloth.twin.chaos_sigma=nan", "cloth.twin.chaos_draws=-2"])
 def test_twin_score_perturbation_settings_are_checked_first(tmp_path, override):
-    """A negative scale or draw count is refused by its name before any footage is read."""
+    """A negative or non-finite scale or a negative draw count is refused by its name before any footage is read."""
     r = subprocess.run([sys.executable, "-m", "vidsim.cli.cloth_twin_score", f"paths.results={tmp_path}",
                         f"paths.out={tmp_path}/o", "cloth.twin.params=p.yaml", "cloth.twin.footage=f", override],
                        capture_output=True, text=True, timeout=120)
-    assert r.returncode == 2 and "cloth.twin.perturb_sigma" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    key = override.split("=")[0]
+    assert r.returncode == 2 and key in r.stderr and "Traceback" not in r.stderr, r.stderr
 
 
 @pytest.mark.parametrize("module,override,expected", [

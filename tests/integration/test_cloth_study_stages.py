@@ -127,8 +127,13 @@ def test_twin_select_profile_score_and_method_comparison(study):
     assert all(prof_e[k] <= slice_e[k] * (1 + 1e-12) for k in slice_e)
     score = res / "cloth" / "twin" / "twin"
     _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={score}", f"cloth.twin.params={params}",
-         f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=5")
+         f"cloth.twin.profile={prof / 'profile.yaml'}", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=5",
+         "cloth.twin.chaos_draws=2")
     sdoc = yaml.safe_load((score / "score.yaml").read_text())
+    ch = sdoc["heldout"]["chaos_mean"]
+    assert ch["draws"] == 2 and len(ch["errors_true"]) == 2 and ch["sigma"] == 1e-4
+    assert ch["ratio"] == pytest.approx(np.mean(ch["errors_selected"]) / np.mean(ch["errors_true"]))
+    assert sdoc["checks"]["heldout_ratio_chaos_mean"]["value"] == ch["ratio"]
     # the held-out ratio's own scale: the true parameters moved by a few per cent, scored the same way
     ts = sdoc["heldout"]["truth_scale"]
     assert ts["draws"] == 5 and len(ts["ratios"]) == 5 - ts["failed"] and ts["parameters"] == ["stretch", "drag_quad"]
@@ -172,9 +177,11 @@ def test_twin_select_profile_score_and_method_comparison(study):
     # held-out error is the one the comparison reports for the joint method
     jscore = res / "cloth" / "twin_joint" / "twin"
     _run("vidsim.cli.cloth_twin_score", *base, f"paths.out={jscore}", f"cloth.twin.params={joint / 'fit.yaml'}",
-         "cloth.twin.profile=", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=0")
+         "cloth.twin.profile=", f"cloth.twin.footage={fp['robot']}", "cloth.twin.perturb_draws=0",
+         "cloth.twin.chaos_draws=0")
     jdoc = yaml.safe_load((jscore / "score.yaml").read_text())
     assert jdoc["heldout"]["truth_scale"] is None and "heldout_ratio_within_truth_scale" not in jdoc["checks"]
+    assert jdoc["heldout"]["chaos_mean"] is None and "heldout_ratio_chaos_mean" not in jdoc["checks"]
     crow = {r.split(",")[0]: r.split(",") for r in (cmp_ / "compare.csv").read_text().splitlines()[1:]}
     assert jdoc["heldout"]["error_selected"] == pytest.approx(float(crow["twin"][2]), rel=1e-4)
     assert jdoc["heldout"]["error_true_params"] == sdoc["heldout"]["error_true_params"]

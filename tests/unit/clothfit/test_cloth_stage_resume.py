@@ -100,24 +100,24 @@ def test_twin_score_resumes_bit_identical_and_recomputes_after_a_setting_change(
     est.write_text(yaml.safe_dump({"params": params_dict(dataclasses.replace(SOFT, stretch=330.0, drag_quad=0.7))}))
     monkeypatch.setattr(twin_stage, "read_truth", lambda folder: {"kind": "twin", "params": params_dict(SOFT)})
     args = [f"paths.results={tmp_path}", f"cloth.twin.params={est}", "cloth.twin.profile=",
-            f"cloth.twin.footage={tmp_path / 'soft'}", "cloth.twin.perturb_draws=4"]
+            f"cloth.twin.footage={tmp_path / 'soft'}", "cloth.twin.perturb_draws=4", "cloth.twin.chaos_draws=2"]
     whole = tmp_path / "whole"
     twin_stage.run(_cfg(*args, f"paths.out={whole}"))
-    assert sims["n"] == 6  # estimate, truth, 4 perturbed truths
+    assert sims["n"] == 10  # estimate, truth, 4 perturbed truths, 2 moved copies of each side
     assert not (whole / ".score_cloth_twin.checkpoint").exists()
     out = tmp_path / "resumed"
     _run_killed(twin_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=4)
     log = out / ".score_cloth_twin.checkpoint" / "evals.jsonl"
     assert len(log.read_text().splitlines()) == 1 + 4  # the context line and the 4 finished simulations
     twin_stage.run(_cfg(*args, f"paths.out={out}"))
-    assert sims["n"] == 2  # only the two draws not logged
+    assert sims["n"] == 6  # only the six simulations not logged
     for f in ("score.yaml", "errors.csv"):
         assert (out / f).read_bytes() == (whole / f).read_bytes()
     assert not (out / ".score_cloth_twin.checkpoint").exists()
     # killed again, then rerun with another metric weight: the log is of another objective, not replayed
     _run_killed(twin_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)
     twin_stage.run(_cfg(*args, f"paths.out={out}", "cloth.fit.alpha=0.2"))
-    assert sims["n"] == 6 and not (out / ".score_cloth_twin.checkpoint").exists()  # the moved-aside log too
+    assert sims["n"] == 10 and not (out / ".score_cloth_twin.checkpoint").exists()  # all again; the moved-aside log removed too
     changed = yaml.safe_load((out / "score.yaml").read_text())["heldout"]
     assert changed["error_selected"] != yaml.safe_load((whole / "score.yaml").read_text())["heldout"]["error_selected"]
 
