@@ -152,6 +152,7 @@ def make_objective(trials: list[Trial], cfg: DictConfig) -> ClothObjective:
                           model=ModelSettings(resolution=int(m.resolution), settle_s=float(m.settle_s),
                                               settle_bath=float(m.settle_bath), integrator=str(m.integrator),
                                               multirate=str(m.multirate), damping=str(m.damping),
+                                              chaos_members=int(m.chaos_members), chaos_sigma=float(m.chaos_sigma),
                                               skirt_rings=int(cfg.cloth.skirt.model_rings),
                                               skirt_around=int(cfg.cloth.skirt.model_around),
                                               skirt_rest_bend=str(cfg.cloth.skirt.model_rest_bend),

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -142,6 +143,10 @@ class ModelSettings:
     plain velocity Verlet; "auto": from the ratio of stable steps), :func:`vidsim.cloth.simulate`'s
     ``multirate``.
     ``damping``: "explicit", "split" or "auto", :func:`vidsim.cloth.simulate`'s ``damping``.
+    ``chaos_members`` > 0: a swatch trial's error is the mean over that many copies of the
+    parameters, each of the nine scaled by fixed draws of exp(N(0, ``chaos_sigma``)) (the same
+    draws for every evaluation, so the averaged objective is a deterministic function); 0: the
+    parameters as given. An experiment against the chaotic loss (docs/cloth_study.md, "Session 36").
     """
 
     resolution: int = 20
@@ -156,6 +161,19 @@ class ModelSettings:
     skirt_fold_members: int = 8
     skirt_fold_amplitude: float = 0.02
     skirt_fold_seed: int = 0
+    chaos_members: int = 0
+    chaos_sigma: float = 1e-4
+
+
+CHAOS_SEED = 20261205  # the chaos members' fixed draws
+
+
+def chaos_scales(members: int, sigma: float) -> list[dict[str, float] | None]:
+    """Per chaos member the factor of each of the nine parameters (``[None]``: no members)."""
+    if members <= 0:
+        return [None]
+    rng = np.random.default_rng(CHAOS_SEED)
+    return [{n: float(np.exp(rng.normal(0.0, sigma))) for n in ESTIMATED_NAMES} for _ in range(members)]
 
 
 @dataclass
@@ -227,6 +245,11 @@ class ClothObjective:
                                  f"got {model.skirt_fold_amplitude!r}")
         if int(model.skirt_fold_seed) != model.skirt_fold_seed or model.skirt_fold_seed < 0:
             raise ObjectiveError(f"cloth.skirt.model_fold_seed must be an integer >= 0, got {model.skirt_fold_seed!r}")
+        if int(model.chaos_members) != model.chaos_members or model.chaos_members < 0:
+            raise ObjectiveError(f"cloth.model.chaos_members must be an integer >= 0, got {model.chaos_members!r}")
+        if not (np.isfinite(model.chaos_sigma) and model.chaos_sigma >= 0):
+            raise ObjectiveError(f"cloth.model.chaos_sigma must be a finite number >= 0, got {model.chaos_sigma!r}")
+        self._chaos = chaos_scales(int(model.chaos_members), float(model.chaos_sigma))
         self.trials = trials
         self.space = space
         self.model = model
@@ -340,12 +363,17 @@ class ClothObjective:
         self.n_evals += 1
         for tr, (mesh, drv, t0, col, starts), p in zip(self.trials, self._rigs, plist):
             # a skirt's fold-seeded ensemble: the trial's errors are the members' means (member 0 is kept)
+            # a swatch's chaos members (cloth.model.chaos_members): the same, one copy per parameter scaling
             m_e, m_fold, m_silh = [], [], []
-            for k, x0 in enumerate(starts):
-                member = f" (fold-seeded start {k})" if x0 is not None else ""
+            chaos = self._chaos if tr.skirt is None else [None]
+            members = [(x0, sc) for x0 in starts for sc in chaos]
+            for k, (x0, sc) in enumerate(members):
+                member = (f" (fold-seeded start {k})" if x0 is not None else
+                          f" (chaos member {k})" if sc is not None else "")
+                pk = p if sc is None else dataclasses.replace(p, **{n: getattr(p, n) * sc[n] for n in ESTIMATED_NAMES})
                 t = time.perf_counter()
                 try:
-                    res = simulate(mesh, p, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
+                    res = simulate(mesh, pk, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
                                    settle_bath=self.model.settle_bath, x0=x0, multirate=self._multirate,
                                    damping=self.model.damping)
                 except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run

@@ -163,6 +163,9 @@ class ClothModelConfig:
     each step, stable for any step) or "auto", the default since 4 Dec 2026 (split where that
     lengthens the step by more than 1.5x, else explicit; :func:`vidsim.cloth.simulate`,
     docs/cloth_parameters.md).
+    ``chaos_members`` > 0: each swatch trial's error is the mean over that many copies of the
+    parameters scaled by fixed draws of exp(N(0, ``chaos_sigma``)) (an experiment against the
+    chaotic loss, off by default: docs/cloth_study.md, "Session 36").
     """
 
     resolution: int = 20
@@ -173,6 +176,8 @@ class ClothModelConfig:
     damping: str = "auto"
     frame_stride: int = 1
     max_frames: int = 0
+    chaos_members: int = 0
+    chaos_sigma: float = 1e-4
 
 
 def _default_space() -> dict[str, Any]:

@@ -185,3 +185,32 @@ def test_a_strided_trial_is_still_driven_by_every_measured_sample(twin_trial):
     with pytest.raises(ObjectiveError, match="driving motion"):
         Trial(st.name, st.features, st.times, st.corner_paths, st.camera, st.projector, st.size, st.density,
               None, tr.times[:3], tr.corner_paths[:3])
+
+
+def test_chaos_members_average_fixed_parameter_copies(twin_trial):
+    """cloth.model.chaos_members: a trial's error is the mean of the copies' errors, each copy the
+    parameters scaled by the fixed draws (so the averaged objective is deterministic), and the
+    members change the objective's fingerprint (no replay of single-run scores)."""
+    import dataclasses
+
+    from vidsim.clothfit.objective import chaos_scales
+
+    tr, fs = twin_trial
+    space = space_from_config({"stretch": {"lo": 20.0, "hi": 4000.0, "log": True}})
+    base = ModelSettings(resolution=8, settle_s=0.2)
+    plain = ClothObjective([tr], space, model=base, features=fs)
+    avg = ClothObjective([tr], space, model=dataclasses.replace(base, chaos_members=3, chaos_sigma=1e-2), features=fs)
+    scales = chaos_scales(3, 1e-2)
+    assert len(scales) == 3 and scales == chaos_scales(3, 1e-2) and scales[0] != scales[1]
+    singles = [plain.evaluate_params(dataclasses.replace(TRUE, **{n: getattr(TRUE, n) * sc[n] for n in sc})).score
+               for sc in scales]
+    r = avg.evaluate_params(TRUE)
+    assert r.ok and len(r.members[0]) == 3
+    assert r.members[0] == pytest.approx(singles, rel=1e-12)
+    assert r.score == pytest.approx(np.mean(singles), rel=1e-12)
+    assert avg.evaluate_params(TRUE).score == r.score  # the same draws every time
+    assert plain.fingerprint() != avg.fingerprint()
+    assert chaos_scales(0, 1e-4) == [None]
+    for bad in (dict(chaos_members=-1), dict(chaos_sigma=float("nan")), dict(chaos_sigma=-1e-4)):
+        with pytest.raises(ObjectiveError, match="cloth.model.chaos_"):
+            ClothObjective([tr], space, model=dataclasses.replace(base, **bad), features=fs)
