@@ -101,6 +101,11 @@ def test_twin_select_profile_score_and_method_comparison(study):
         assert lo <= p["estimate"] <= hi and 0 <= p["width_fraction"] <= 1
     # slices log their evaluations too (a killed stage resumes): the grid points plus the roughness probes
     assert pdoc["kind"] == "slice" and (prof / "evals.jsonl").is_file()
+    # where the fit stopped short: exactly the axes whose slice lies below the estimate by more than "as good"
+    csv_rows = [ln.split(",") for ln in (prof / "profiles.csv").read_text().splitlines()[1:]]
+    e_hat0 = next(iter(pdoc["profiles"].values()))["error_at_estimate"]
+    below = {r[0] for r in csv_rows if float(r[3]) < e_hat0 * (1 - pdoc["tol_effective"])}
+    assert set(pdoc["stopped_short"]) == below
     assert len((prof / "evals.jsonl").read_text().splitlines()) >= 2 * 3  # 2 parameters x 3 points
     # the loss's roughness measured at the estimate (8 points by default) only widens "as good"
     assert pdoc["roughness_points"] == 8 and pdoc["roughness_sd"] > 0

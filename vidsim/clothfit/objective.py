@@ -189,8 +189,9 @@ class EvalResult:
         timing: seconds spent in ``simulate``, ``render``, ``anglemap``, ``metric``.
         positions: per-trial (T, N, 3) simulated vertices (only when requested).
         theta_sim, sil_sim: per-trial simulated angle maps / silhouettes (only when requested).
-        members: per trial, the error of each start of its ensemble (a skirt's fold-seeded starts;
-            one entry otherwise); ``per_trial`` is their mean.
+        members: per trial, the error of each member of its ensemble (a skirt's fold-seeded starts,
+            a swatch's chaos members; one entry otherwise); ``per_trial`` is their mean. The kept
+            outputs (``keep``) are member 0's: with chaos members a moved copy of the parameters.
     """
 
     score: float
@@ -247,8 +248,9 @@ class ClothObjective:
             raise ObjectiveError(f"cloth.skirt.model_fold_seed must be an integer >= 0, got {model.skirt_fold_seed!r}")
         if int(model.chaos_members) != model.chaos_members or model.chaos_members < 0:
             raise ObjectiveError(f"cloth.model.chaos_members must be an integer >= 0, got {model.chaos_members!r}")
-        if not (np.isfinite(model.chaos_sigma) and model.chaos_sigma >= 0):
-            raise ObjectiveError(f"cloth.model.chaos_sigma must be a finite number >= 0, got {model.chaos_sigma!r}")
+        if not (np.isfinite(model.chaos_sigma) and 0 <= model.chaos_sigma <= 1):
+            raise ObjectiveError(f"cloth.model.chaos_sigma must be in [0, 1] (a log-scale spread; 1e-4 moves the "
+                                 f"parameters by 0.01 %), got {model.chaos_sigma!r}")
         self._chaos = chaos_scales(int(model.chaos_members), float(model.chaos_sigma))
         self.trials = trials
         self.space = space

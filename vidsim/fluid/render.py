@@ -592,6 +592,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             mflow = np.concatenate([mflow, mflow[-1:]], 0)
         if mflow.shape != sflow.shape:
             raise RenderInputError(f"match_flow shape {np.shape(match_flow)} does not fit src_flow {src_flow.shape}")
+    if solid is not None and np.shape(solid) != (H, W):
+        raise RenderInputError(f"solid shape {np.shape(solid)}, expected {(H, W)}")
     fill = fill_alpha = blocked = src_solid = None
     added = solid
     if footage_solid is not None and np.any(footage_solid):
@@ -613,10 +615,17 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         if fill is None:
             median = np.median(src, axis=0)
         tp_colour, tp_alpha = np.zeros((H, W, 3)), np.zeros((H, W, 1))
+        # every obstacle's pixels: an added obstacle's blend ring must not paint over another solid
+        # (it would lay the source obstacle's surroundings over it)
+        others = np.zeros((H, W), bool)
+        for m in (solid, footage_solid):
+            if m is not None:
+                others |= np.asarray(m, bool)
         for tp in transplants:
             if np.shape(tp.mask) != (H, W):
                 raise RenderInputError(f"transplant mask shape {np.shape(tp.mask)}, expected {(H, W)}")
             a = obstacle_alpha(tp.mask, o)[..., None]
+            a[others & ~np.asarray(tp.mask, bool)] = 0.0
             tp_colour = a * tp.image(median, (H, W)) + (1.0 - a) * tp_colour  # premultiplied, later on top
             tp_alpha = a + (1.0 - a) * tp_alpha
         hide = np.any([np.asarray(tp.mask, bool) for tp in transplants], axis=0)
@@ -736,7 +745,11 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                         exposed[gy + o:gy + p + o, gx + o:gx + p + o]].any())
                 if cov.size and (cov.mean() < 0.9 or bare):
                     if hide is not None and hide[gy + p // 2, gx + p // 2]:
-                        continue  # a transplanted obstacle: its fill, not a patch
+                        # a transplanted obstacle: its fill, not a patch, where the fill covers
+                        # the cell's own part (with a small overlap or obstacle it may not)
+                        own = tp_alpha[max(gy + o, 0):min(gy + p - o, H), max(gx + o, 0):min(gx + p - o, W), 0]
+                        if own.size == 0 or (own > 0).all():
+                            continue
                     if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2:
                         continue
                     # a patch spawned here is still fading in: wait for it unless pixels are bare

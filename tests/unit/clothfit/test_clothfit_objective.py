@@ -211,6 +211,6 @@ def test_chaos_members_average_fixed_parameter_copies(twin_trial):
     assert avg.evaluate_params(TRUE).score == r.score  # the same draws every time
     assert plain.fingerprint() != avg.fingerprint()
     assert chaos_scales(0, 1e-4) == [None]
-    for bad in (dict(chaos_members=-1), dict(chaos_sigma=float("nan")), dict(chaos_sigma=-1e-4)):
+    for bad in (dict(chaos_members=-1), dict(chaos_sigma=float("nan")), dict(chaos_sigma=-1e-4), dict(chaos_sigma=800.0)):
         with pytest.raises(ObjectiveError, match="cloth.model.chaos_"):
             ClothObjective([tr], space, model=dataclasses.replace(base, **bad), features=fs)

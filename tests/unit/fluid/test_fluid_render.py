@@ -405,3 +405,36 @@ def test_added_obstacles_fall_back_to_patches(stream, monkeypatch):
             run_edit(frames, spec, np.random.default_rng(0), flow=flow)
     assert [len(t) for t in seen] == [1, 0, 0]
     assert seen[0][0].src_center == (36.5, 48.5) and seen[0][0].center == (68.5, 26.5)
+
+
+def test_an_added_obstacle_overlapping_the_footage_one_leaves_it_dark(dark_disc):
+    """An added disc (centre (50, 24), radius 6 px) overlapping the footage's dark disc (centre
+    (40, 24), radius 8 px): the added disc's blend ring must not lay the source's surroundings over
+    the footage disc, which stays dark everywhere (review, 5 Dec 2026: a band of grey 36-84 at
+    x = 42-43 inside it)."""
+    frames, disc, flow = dark_disc
+    yy, xx = np.mgrid[0:disc.shape[0], 0:disc.shape[1]]
+    added = (xx - 50) ** 2 + (yy - 24) ** 2 <= 6**2
+    tp = Transplant(added, (50.0, 24.0), (40.0, 24.0), (8 / 6, 8 / 6))
+    out, _, _ = _render_with_disc(frames, disc, flow, added, True, transplants=[tp])
+    g = out.astype(np.float64).mean(-1)
+    core = (np.hypot(xx - 40, yy - 24) <= 7) & ~added  # the footage disc 1 px in from its outline
+    assert g[:, core].max() < 20, g[:, core].max()
+
+
+def test_a_small_added_obstacle_leaves_no_bare_pixels():
+    """With a small overlap (16 px patches, 2 px overlap) a transplanted disc of radius 3 px does
+    not cover its cell's own part: that cell still gets a patch, so no pixel is left black
+    (review, 5 Dec 2026: 698 black pixels over 16 frames)."""
+    frames, disc = _still_red_disc(colour=(10, 10, 10))
+    flow = estimate_flow(frames)
+    yy, xx = np.mgrid[0:disc.shape[0], 0:disc.shape[1]]
+    added = (xx - 20) ** 2 + (yy - 20) ** 2 <= 3**2  # on a cell's centre pixel (cells of 14 px from -2)
+    tp = Transplant(added, (20.0, 20.0), (40.0, 24.0), (8 / 3, 8 / 3))
+    field = np.zeros(disc.shape + (2,))
+    field[..., 0] = 0.5
+    field[disc | added] = 0.0
+    out, _ = render_sequence(frames, flow, field, 16, np.random.default_rng(0), RenderSettings(patch=16, overlap=2),
+                             solid=disc | added, match_flow=flow.mean(0), footage_solid=disc, transplants=[tp])
+    black = (out.max(-1) == 0)
+    assert black.sum() == 0, black.sum()
