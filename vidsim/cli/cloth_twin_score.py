@@ -135,7 +135,7 @@ def _score(cfg: DictConfig, out: Path, obj: LoggedScores, est, true, truth: dict
         print(f"score_cloth_twin: the true parameters moved by exp(N(0, {scale['sigma']:g})) give held-out ratios "
               f"{scale['ratio_q10']:.3f} / {scale['ratio_q50']:.3f} / {scale['ratio_q90']:.3f} (10/50/90 %), "
               f"{scale['fraction_within_heldout_ratio']:.0%} within {tc.heldout_ratio:g}", flush=True)
-    if chaos is not None:
+    if chaos is not None and e_true > 0:
         print(f"score_cloth_twin: averaged over {chaos['draws']} copies each moved by exp(N(0, {chaos['sigma']:g})): "
               f"held-out errors {chaos['error_selected_mean']:.4g} / {chaos['error_true_mean']:.4g}, ratio "
               f"{chaos['ratio']:.3f} (single runs of the truth: {min(chaos['errors_true']) / e_true:.3f}-"
