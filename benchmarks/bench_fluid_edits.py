@@ -67,6 +67,7 @@ def main() -> None:
               f"{figs['patch_distance']['coherence_ratio']:.3f}, completeness {figs['patch_distance']['completeness_ratio']:.3f}); "
               f"detail ratio {figs['detail_ratio']:.3f} (>= 0.8); static flicker {fo:.3f} (<= source {fs:.3f}; nan = no static region "
               f"of >= 100 px); compensated flicker {figs['flicker_mc_output']:.3f} (source {figs['flicker_mc_source']:.3f}); "
+              f"bare pixels {figs['render']['bare_pixels']}; "
               f"render {figs['render']['time_per_frame_s']:.3f} s/frame; total {figs['total_s']:.1f} s wall, "
               f"{figs['total_cpu_s']:.1f} s CPU", flush=True)
         if a.out is not None:

@@ -555,7 +555,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     Returns:
         ``(n_frames, H, W, 3)`` uint8 frames and figures: ``time_per_frame_s``,
         ``patches_mean``, ``spawned``, ``data_cost_mean`` (mean squared velocity-feature
-        distance of the chosen patches, px^2/frame^2).
+        distance of the chosen patches, px^2/frame^2), ``bare_pixels`` (output pixels no patch
+        covers where no fill covers them fully, summed over the frames).
     """
     s = settings or RenderSettings()
     src_frames = np.asarray(src_frames)
@@ -646,13 +647,21 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         shown = np.pad(tp_alpha[..., 0] > 0, o, constant_values=False)
         beside = {(gy, gx) for gy in grid_y for gx in grid_x if not hide[gy + p // 2, gx + p // 2]
                   and shown[gy + o:gy + p + o, gx + o:gx + p + o].any()}
+    # the pixels that show the patches (no fill covers them fully), padded like the accumulator:
+    # one no patch covers there renders black, or darkened in the in-footage fill's ramp
+    shows_patches = np.ones((H, W), bool)
+    if fill_alpha is not None:
+        shows_patches &= fill_alpha[..., 0] < 1
+    if tp_alpha is not None:
+        shows_patches &= tp_alpha[..., 0] == 0
+    shows_patches = np.pad(shows_patches, o, constant_values=False)
     advect = s.mode == "advected"
     cubic = s.resample == "cubic"
     corr_len = correlation_length(src_frames)
     preserve = s.blend == "variance"
     P = _Patches.empty()
     out = np.empty((n_frames, H, W, 3), np.uint8)
-    spawned = 0
+    spawned = bare_pixels = 0
     last_spawn: dict[tuple[int, int], int] = {}
     costs: list[float] = []
     n_live: list[int] = []
@@ -757,6 +766,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                         continue
                     last_spawn[(gy, gx)] = n
                     spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
+        bare_pixels += int((accum[..., _W] < 1e-6)[shows_patches].sum())
         img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
         if fill is not None:
             img = fill_alpha * fill + (1.0 - fill_alpha) * img
@@ -774,7 +784,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             on_frame(n)
     dt = time.perf_counter() - t0
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
-            "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "mode": s.mode,
+            "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "bare_pixels": bare_pixels, "mode": s.mode,
             "source_temporal": temporal, "source_candidates": len(sel.feats),
             "source_candidates_fluid": len(sel.pools["fluid"]), "transplanted_obstacles": len(transplants)}
     return out, figs
