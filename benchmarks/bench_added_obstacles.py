@@ -1,5 +1,6 @@
 """Obstacles the edit adds, drawn from patches (``render.added_obstacles: patches``, the renderer
-before the transplant, bit-identical to it) and transplanted (``transplant``, the default), on
+before the transplant, bit-identical to it until the hole filler covered the overlaps between
+cells, 5 Dec 2026) and transplanted (``transplant``, the default), on
 the example edits that add one beside an ``in_footage`` obstacle (``piv_karman_second_cylinder``,
 ``stream_second_boat``).
 
@@ -19,7 +20,8 @@ Per edit, mode and render seed (``run_edit`` as ``bench_fluid_edits.py`` runs it
   comparison with patches is the point;
 * the whole-frame figures of ``bench_fluid_edits.py``: patch ratio, detail ratio,
   motion-compensated flicker, rendered-flow EPE relative to the field's speed, and the bare
-  pixels (no patch covers them and no fill fully, summed over the frames).
+  pixels (no patch covers them and no fill fully, summed over the frames) and the patches the
+  hole filler's last pass spawned on such pixels.
 
 Run: ``.venv/bin/python benchmarks/bench_added_obstacles.py [--seeds 0 1 2] [--frames 120]
 [--png DIR]`` (about 10 s per edit, mode and seed); ``--png`` writes, per edit, source | patches |
@@ -116,7 +118,8 @@ def main() -> None:
                        "grey_std_2px_in": o["grey_std_2px_in"], "contrast_mean": o["contrast_mean"],
                        "outline_visible": visible(o["contrast_sectors"]), "patch_ratio": f["patch_distance"]["ratio"],
                        "detail_ratio": f["detail_ratio"], "flicker_mc": f["flicker_mc_output"],
-                       "epe_rel": f["rendered_flow_epe_rel"], "bare_pixels": f["render"]["bare_pixels"]}
+                       "epe_rel": f["rendered_flow_epe_rel"], "bare_pixels": f["render"]["bare_pixels"],
+                       "spawned_on_bare": f["render"]["spawned_on_bare"]}
                 rows.append(row)
                 print(f"{name} {mode} seed {seed}: " + json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True)
                 if seed == a.seeds[0]:

@@ -16,8 +16,9 @@ Sequence modes:
   edited field while its source window moves with the source flow and its source time
   advances, so the texture inside it moves like the edited field and keeps the source's own
   temporal texture dynamics. Holes opened by divergence are filled by new patches
-  (PATCHSELECT against the current output, faded in); crowded cells and patches whose source
-  clip ends fade out. Patches centred on an obstacle (``solid``) hold their source frame.
+  (PATCHSELECT against the current output, faded in; no pixel outside the obstacles' fills is
+  left uncovered); crowded cells and patches whose source clip ends fade out. Patches centred
+  on an obstacle (``solid``) hold their source frame.
 
 Obstacles that are in the footage at the same place (``footage_solid``, e.g. a PIV recording's
 cylinder) show the footage's own pixels: the per-pixel temporal median of the source, blended
@@ -538,8 +539,9 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         settings: patch size, overlap, K, mode, candidate search, blend; defaults of
             :class:`RenderSettings`.
         solid: optional ``(H, W)`` obstacle mask of the output (after frame 0 patches are not
-            spawned centred inside it; it gets colour from zero-velocity source patches, which
-            hold their source frame there).
+            spawned centred inside it, unless a pixel outside the fills in their window would
+            be left bare; it gets colour from zero-velocity source patches, which hold their
+            source frame there).
         match_flow: flow the velocity patches are matched on (default ``src_flow``).
         footage_solid: optional ``(H, W)`` mask of the obstacles that are in the footage at
             the same place (output pixel = source pixel): they show the source's temporal median,
@@ -556,7 +558,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         ``(n_frames, H, W, 3)`` uint8 frames and figures: ``time_per_frame_s``,
         ``patches_mean``, ``spawned``, ``data_cost_mean`` (mean squared velocity-feature
         distance of the chosen patches, px^2/frame^2), ``bare_pixels`` (output pixels no patch
-        covers where no fill covers them fully, summed over the frames).
+        covers where no fill covers them fully, summed over the frames: 0, the hole filler's
+        last pass covers them), ``spawned_on_bare`` (patches that last pass spawned).
     """
     s = settings or RenderSettings()
     src_frames = np.asarray(src_frames)
@@ -639,14 +642,6 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     # (an inflow edge otherwise opens an uncovered strip as soon as its patches move in)
     grid_y = np.unique(np.r_[np.arange(-o, H - p + o + 1, step), H - p + o])
     grid_x = np.unique(np.r_[np.arange(-o, W - p + o + 1, step), W - p + o])
-    # cells beside a transplanted obstacle (their window reaches its fill) and, padded like the
-    # accumulator, the pixels no fill covers
-    beside: set[tuple[int, int]] = set()
-    if hide is not None:
-        exposed = np.pad(tp_alpha[..., 0] == 0, o, constant_values=False)
-        shown = np.pad(tp_alpha[..., 0] > 0, o, constant_values=False)
-        beside = {(gy, gx) for gy in grid_y for gx in grid_x if not hide[gy + p // 2, gx + p // 2]
-                  and shown[gy + o:gy + p + o, gx + o:gx + p + o].any()}
     # the pixels that show the patches (no fill covers them fully), padded like the accumulator:
     # one no patch covers there renders black, or darkened in the in-footage fill's ramp
     shows_patches = np.ones((H, W), bool)
@@ -661,7 +656,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     preserve = s.blend == "variance"
     P = _Patches.empty()
     out = np.empty((n_frames, H, W, 3), np.uint8)
-    spawned = bare_pixels = 0
+    spawned = bare_pixels = spawned_on_bare = 0
     last_spawn: dict[tuple[int, int], int] = {}
     costs: list[float] = []
     n_live: list[int] = []
@@ -687,6 +682,10 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                cubic)
         spawned += 1
         costs.append(c)
+
+    def uncovered(win: tuple[slice, slice] = np.s_[:, :]) -> np.ndarray:
+        """The pixels of ``win`` of the (padded) accumulator no patch covers that show the patches."""
+        return (accum[win][..., _W] < 1e-6) & shows_patches[win]
 
     for n in range(n_frames):
         field = ef[min(n, ef.shape[0] - 1)]
@@ -742,16 +741,16 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             _splat(src, p, o, P.cx + o, P.cy + o, P.ts, P.sx, P.sy, P.alpha, n, accum, True, cubic)
         sel.set_usage(P.sy, P.sx, P.alpha)
         # fill holes (all of frame 0) in raster order: a cell whose own part (its patch minus
-        # the overlaps) is under-covered on average or has an uncovered (black) pixel
+        # the overlaps) is under-covered on average or has an uncovered pixel, or whose window
+        # has an uncovered pixel that shows the patches anywhere, in the overlaps with its
+        # neighbours' windows and their corners too (no cell's own part holds those)
+        any_bare = bool(uncovered().any())
         for gy in grid_y:
             for gx in grid_x:
                 cov = accum[gy + 2 * o:gy + p, gx + 2 * o:gx + p, _W]
-                bare = cov.size and cov.min() < 1e-6
-                if (gy, gx) in beside:
-                    # the cell centred in the obstacle spawns nothing: bare pixels the fill does not
-                    # hide anywhere in this window (not only its own part) call for a patch here
-                    bare = bare or bool((accum[gy + o:gy + p + o, gx + o:gx + p + o, _W] < 1e-6)[
-                        exposed[gy + o:gy + p + o, gx + o:gx + p + o]].any())
+                win = np.s_[gy + o:gy + p + o, gx + o:gx + p + o]
+                shows_bare = any_bare and bool(uncovered(win).any())
+                bare = shows_bare or bool(cov.size and cov.min() < 1e-6)
                 if cov.size and (cov.mean() < 0.9 or bare):
                     if hide is not None and hide[gy + p // 2, gx + p // 2]:
                         # a transplanted obstacle: its fill, not a patch, where the fill covers
@@ -759,14 +758,22 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                         own = tp_alpha[max(gy + o, 0):min(gy + p - o, H), max(gx + o, 0):min(gx + p - o, W), 0]
                         if own.size == 0 or (own > 0).all():
                             continue
-                    if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2:
+                    if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2 \
+                            and not shows_bare:
                         continue
                     # a patch spawned here is still fading in: wait for it unless pixels are bare
                     if n - last_spawn.get((gy, gx), -fade) < fade and not bare:
                         continue
                     last_spawn[(gy, gx)] = n
                     spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
-        bare_pixels += int((accum[..., _W] < 1e-6)[shows_patches].sum())
+        # a bare pixel no cell took (each cell whose window holds it is centred in a transplanted
+        # obstacle whose fill covers its own part): a patch centred on it
+        for i, j in np.argwhere(uncovered()):
+            if accum[i, j, _W] < 1e-6:
+                spawned_on_bare += 1
+                spawn(min(max(int(j) - o - p // 2, -o), W - p + o), min(max(int(i) - o - p // 2, -o), H - p + o),
+                      1.0 if n == 0 else 0.35)
+        bare_pixels += int(uncovered().sum())
         img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
         if fill is not None:
             img = fill_alpha * fill + (1.0 - fill_alpha) * img
@@ -784,7 +791,8 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
             on_frame(n)
     dt = time.perf_counter() - t0
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
-            "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "bare_pixels": bare_pixels, "mode": s.mode,
+            "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "bare_pixels": bare_pixels,
+            "spawned_on_bare": spawned_on_bare, "mode": s.mode,
             "source_temporal": temporal, "source_candidates": len(sel.feats),
             "source_candidates_fluid": len(sel.pools["fluid"]), "transplanted_obstacles": len(transplants)}
     return out, figs
