@@ -77,7 +77,7 @@ from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, 
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, frame_sandwich_cov, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _fit_one_number, _heldout_time_fit, _lag1, _white_fraction
-from vidsim.gap.rigid_diagnose import beats_placebo, jitter_search_bound
+from vidsim.gap.rigid_diagnose import beats_placebo, jitter_search_bound, pick_supported
 from vidsim.io.atomic import atomic_path
 from vidsim.optim.cache import fingerprint
 
@@ -1318,16 +1318,15 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
             pool = sorted(rest, key=lambda c: scr[c]["rank"])
             note("conditional screen")
             conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}
-        best, best_s = None, -np.inf
+        step_res: dict[str, dict] = {}
         for c in pool[: cfg.top_k]:
             effs = tuple(named) + (c,)
             res = judge(effs, None if prev is None else np.asarray(prev["theta"]))
-            res["supported"] = ok = bool(gap_present and supported(res, c, prev))
+            res["supported"] = bool(gap_present and supported(res, c, prev))
             res["closure_of_remaining"] = strength(res, c, prev)
-            refits["+".join(effs)] = res
+            refits["+".join(effs)] = step_res[c] = res
             note(f"refit {'+'.join(effs)}")
-            if ok and res["closure_of_remaining"] > best_s:
-                best, best_s = c, res["closure_of_remaining"]
+        best = pick_supported(step_res)
         if best is None:
             break
         named.append(best)

@@ -232,3 +232,23 @@ def test_jitter_must_beat_the_placebo_by_half_the_heldout_excess():
     # a placebo worse than "before" (the jitter refit broke the held-out frames): judged against 140
     assert not beats_placebo(100.0, 1000.0, 140.0, 40.0, 0.5)
     assert beats_placebo(85.0, 1000.0, 140.0, 40.0, 0.5)
+
+
+def test_the_named_candidate_is_the_one_leaving_the_least_heldout_gap():
+    """Forward selection compares every supported candidate on the held-out frames, time jitter
+    included: jitter's training closure (0.88) must not beat a time offset that leaves less on the
+    held-out frames (the stiff-twin time-offset case of 6 Dec 2026: 55 against 69 px)."""
+    from vidsim.gap.rigid_diagnose import pick_supported
+
+    step = {
+        "time_offset": {"supported": True, "closure_of_remaining": 0.742, "heldout_after_px": 54.9},
+        "time_jitter": {"supported": True, "closure_of_remaining": 0.875, "heldout_after_px": 69.3},
+        "motion_blur": {"supported": False, "closure_of_remaining": 0.95, "heldout_after_px": 40.0},
+    }
+    assert pick_supported(step) == "time_offset"
+    # a jitter that does leave the least held-out gap is named
+    step["time_jitter"]["heldout_after_px"] = 50.0
+    assert pick_supported(step) == "time_jitter"
+    # an unsupported candidate is never named, however low its gap
+    assert pick_supported({"motion_blur": step["motion_blur"]}) is None
+    assert pick_supported({}) is None
