@@ -10,6 +10,7 @@ instability of the scheme it would change with the step; a physical sensitivity 
 
     python benchmarks/bench_cloth_divergence.py                      # every parameter, 1e-8 / 1e-5 / 1e-3
     python benchmarks/bench_cloth_divergence.py --params stretch --rel 1e-5 --steps 1 0.5 0.25 0.1
+    python benchmarks/bench_cloth_divergence.py --bend 8e-5 --rel 1e-5 1e-3   # a stiff twin
 """
 
 from __future__ import annotations
@@ -33,8 +34,14 @@ def main() -> None:
                     help="moves of the parameter (its model coordinate: ln for stiffnesses)")
     ap.add_argument("--steps", nargs="+", type=float, default=[1.0], help="step factors (1: the model's own)")
     ap.add_argument("--frames", nargs="+", type=int, default=[0, 4, 8, 12, 15])
+    ap.add_argument("--bend", type=float, default=None,
+                    help="the twin's bending stiffness, N m (default: the suite's, 3e-6)")
     a = ap.parse_args()
     sc = ClothSceneConfig()
+    if a.bend is not None:
+        if not (np.isfinite(a.bend) and a.bend > 0):
+            ap.error(f"--bend must be a positive number of N m, got {a.bend}")
+        sc.twin_params = dict(sc.twin_params, bend=float(a.bend))
     # the suite's null case supplies the measured corner paths and the camera (the footage is unused)
     tr = make_case({"label": "none", "seed": 320}, sc).trial
     T = tr.sil.shape[0]
@@ -44,7 +51,7 @@ def main() -> None:
                        sc.resolution, sc.settle_s_model, 0.0, 1, "explicit")
     dt0 = ClothGapModel(setup, p, est, ()).dt
     names = a.params or est
-    print(f"model step {dt0 * 1e6:.1f} us; largest vertex distance (mm) at frames {a.frames} "
+    print(f"bend {p.bend:g} N m; model step {dt0 * 1e6:.1f} us; largest vertex distance (mm) at frames {a.frames} "
           f"({', '.join(f'{tr.times[f]:.3f}' for f in a.frames)} s)")
     for fac in a.steps:
         m = ClothGapModel(setup, p, est, (), dt=dt0 * fac)
