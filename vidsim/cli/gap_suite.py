@@ -60,6 +60,10 @@ def headline(scores: dict[str, dict]) -> dict:
     rec = [r["rel_error"] for s in single for r in s.get("recovery", {}).values()]
     return {
         "named_first_correct": f"{sum(s['correct'] for s in single)}/{len(single)}",
+        # ... and no other supported candidate as good on the held-out frames (a paired test; cases
+        # scored before 5 Dec 2026, session 37, lack the field and are not counted as decided)
+        "named_first_correct_decided": f"{sum(s['correct'] and s.get('named_first_as_good') == [] for s in single)}"
+                                       f"/{len(single)}",
         "null_cases_naming_nothing": f"{sum(s['correct'] for s in nulls)}/{len(nulls)}",
         "combined_both_named": f"{sum(s['correct'] for s in combos)}/{len(combos)}",
         "out_of_library_reported_unexplained": f"{sum(s['correct'] and s['gap_present'] for s in ool)}/{len(ool)}",

@@ -409,6 +409,11 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
                            "gap_present": bool(diag.extra.get("gap_present", False)),
                            "noise_floor_px": float(diag.floor_test.mean()),
                            "heldout_before_px": float(diag.gap_per_frame[diag.test].mean())}
+    r_first = diag.refits.get(diag.refit_key(first)) if named else None
+    # the supported candidates the held-out frames cannot tell from the first named (undecided)
+    # (None where the naming step did not test it: a joint pair, or nothing named)
+    alike = (r_first or {}).get("as_good_on_heldout")
+    out["named_first_as_good"] = list(alike) if alike is not None else None
     truths = true_strengths(truth, scene)
     rec = {}
     for lbl in labels:

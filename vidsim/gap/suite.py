@@ -193,6 +193,10 @@ def score_case(case: dict, diag: RigidDiagnosis, truth: dict, body: BoxBody,
                            "gap_present": bool(diag.extra.get("gap_present", False)),
                            "noise_floor_px": float(diag.floor_test.mean()),
                            "heldout_before_px": float(diag.gap_per_frame[diag.test].mean())}
+    # the supported candidates the held-out frames cannot tell from the first named (undecided)
+    # (None where the naming step did not test it: a joint pair, or nothing named)
+    alike = diag.refits.get(first, {}).get("as_good_on_heldout") if named else None
+    out["named_first_as_good"] = list(alike) if alike is not None else None
     truths = true_strengths(truth, body, nominal_times)
     rec = {}
     for lbl in labels:

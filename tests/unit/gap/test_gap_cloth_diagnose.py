@@ -86,6 +86,8 @@ def test_withheld_grip_slip_is_named_first_and_closes_half_the_excess():
                                                                region="outline"))
     assert diag.named[:1] == ["grip_slip"], diag.verdict
     assert score["correct"]
+    # top_k = 1: no other candidate was refitted, so none can be as good
+    assert score["named_first_as_good"] == []
     floor, before = score["noise_floor_px"], score["heldout_before_px"]
     after = score["heldout_after_px"]["grip_slip"]
     assert (before - after) / (before - floor) >= 0.5

@@ -252,3 +252,46 @@ def test_the_named_candidate_is_the_one_leaving_the_least_heldout_gap():
     # an unsupported candidate is never named, however low its gap
     assert pick_supported({"motion_blur": step["motion_blur"]}) is None
     assert pick_supported({}) is None
+
+
+def test_a_candidate_the_heldout_frames_cannot_tell_from_the_named_one_is_reported():
+    """The paired test of ``as_good_on_heldout``: per-frame held-out gaps of the cloth suite's
+    time-offset case (5 Dec 2026) leave the rolling shutter 5.0 px worse on average with a
+    standard error of 5.7 (undecided); a candidate worse on every frame by 10-14 px is told apart,
+    and an unsupported one is never listed."""
+    from vidsim.gap.rigid_diagnose import as_good_on_heldout
+
+    held = np.array([1, 4, 7, 10, 13])
+    g = np.full(16, 50.0)
+    g[held] = [60.0, 70.0, 65.0, 62.0, 80.0]
+    shutter = g.copy()
+    shutter[held] += [-0.3, -7.1, -3.7, 12.1, 23.8]
+    worse = g.copy()
+    worse[held] += [10.0, 12.0, 14.0, 11.0, 13.0]
+    step = {"time_offset": {"supported": True, "gap_per_frame_after_px": g.tolist()},
+            "rolling_shutter": {"supported": True, "gap_per_frame_after_px": shutter.tolist()},
+            "time_rate": {"supported": True, "gap_per_frame_after_px": worse.tolist()},
+            "lens_k1": {"supported": False, "gap_per_frame_after_px": g.tolist()}}
+    assert as_good_on_heldout(step, "time_offset", held) == ["rolling_shutter"]
+    # the training frames do not count: a candidate far worse there but equal on held-out is listed
+    step["time_rate"]["gap_per_frame_after_px"] = np.where(np.isin(np.arange(16), held), g, 500.0).tolist()
+    assert as_good_on_heldout(step, "time_offset", held) == ["rolling_shutter", "time_rate"]
+    # a tighter test (z = 0.5) tells the shutter apart
+    assert as_good_on_heldout(step, "time_offset", held, z=0.5) == ["time_rate"]
+
+
+def test_the_suite_headline_counts_decided_names_apart():
+    """``named_first_correct_decided`` counts a right first name only when no other supported
+    candidate was as good on the held-out frames; a score without the field (scored before it
+    existed, or a jointly named pair) is not counted as decided."""
+    from vidsim.cli.gap_suite import headline
+
+    base = {"gap_present": True, "correct": True, "closure": {}, "recovery": {}}
+    scores = {"a": {**base, "label": "magnus", "named_first_as_good": []},
+              "b": {**base, "label": "time_offset", "named_first_as_good": ["rolling_shutter"]},
+              "c": {**base, "label": "lens_k1"},
+              "d": {**base, "label": "wind", "correct": False, "named_first_as_good": []},
+              "n": {**base, "label": "none", "named_first_as_good": None}}
+    h = headline(scores)
+    assert h["named_first_correct"] == "3/4"
+    assert h["named_first_correct_decided"] == "1/4"

@@ -29,6 +29,8 @@ def test_withheld_com_offset_is_named_first_and_recovered_from_mujoco_footage(mo
     case = yaml.safe_load(open(f"{CONF_DIR}/gap/default.yaml"))["cases"]["com_offset"]
     diag, score, masks, th = run_case(case)
     assert score["correct"] and score["named_first"] == "com_offset", score
+    # the naming step tested the others: a list (empty when nothing else was as good on held-out)
+    assert isinstance(score["named_first_as_good"], list), score
     # the shrinkage and strength targets (measured 0.9+ and 5 % in the suite runs)
     assert score["closure"]["com_offset"] >= 0.5, score
     assert score["recovery"]["com_offset"]["rel_error"] <= 0.30, score["recovery"]
