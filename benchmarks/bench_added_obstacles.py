@@ -20,8 +20,9 @@ Per edit, mode and render seed (``run_edit`` as ``bench_fluid_edits.py`` runs it
   comparison with patches is the point;
 * the whole-frame figures of ``bench_fluid_edits.py``: patch ratio, detail ratio,
   motion-compensated flicker, rendered-flow EPE relative to the field's speed, and the bare
-  pixels (no patch covers them and no fill fully, summed over the frames) and the patches the
-  hole filler's last pass spawned on such pixels.
+  pixels (no patch covers them and they show the patches, summed over the frames; 0 by
+  construction since the hole filler's last pass covers them: a check), the same count before
+  that pass, and the patches the pass spawned on such pixels.
 
 Run: ``.venv/bin/python benchmarks/bench_added_obstacles.py [--seeds 0 1 2] [--frames 120]
 [--png DIR]`` (about 10 s per edit, mode and seed); ``--png`` writes, per edit, source | patches |
@@ -119,6 +120,7 @@ def main() -> None:
                        "outline_visible": visible(o["contrast_sectors"]), "patch_ratio": f["patch_distance"]["ratio"],
                        "detail_ratio": f["detail_ratio"], "flicker_mc": f["flicker_mc_output"],
                        "epe_rel": f["rendered_flow_epe_rel"], "bare_pixels": f["render"]["bare_pixels"],
+                       "bare_before_last_pass": f["render"]["bare_before_last_pass"],
                        "spawned_on_bare": f["render"]["spawned_on_bare"]}
                 rows.append(row)
                 print(f"{name} {mode} seed {seed}: " + json.dumps({k: round(v, 4) for k, v in row.items()}), flush=True)

@@ -67,7 +67,8 @@ def main() -> None:
               f"{figs['patch_distance']['coherence_ratio']:.3f}, completeness {figs['patch_distance']['completeness_ratio']:.3f}); "
               f"detail ratio {figs['detail_ratio']:.3f} (>= 0.8); static flicker {fo:.3f} (<= source {fs:.3f}; nan = no static region "
               f"of >= 100 px); compensated flicker {figs['flicker_mc_output']:.3f} (source {figs['flicker_mc_source']:.3f}); "
-              f"bare pixels {figs['render']['bare_pixels']}; "
+              f"bare pixels {figs['render']['bare_pixels']} (0 by construction; before the hole filler's last pass "
+              f"{figs['render']['bare_before_last_pass']}, patches it spawned {figs['render']['spawned_on_bare']}); "
               f"render {figs['render']['time_per_frame_s']:.3f} s/frame; total {figs['total_s']:.1f} s wall, "
               f"{figs['total_cpu_s']:.1f} s CPU", flush=True)
         if a.out is not None:

@@ -557,9 +557,12 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     Returns:
         ``(n_frames, H, W, 3)`` uint8 frames and figures: ``time_per_frame_s``,
         ``patches_mean``, ``spawned``, ``data_cost_mean`` (mean squared velocity-feature
-        distance of the chosen patches, px^2/frame^2), ``bare_pixels`` (output pixels no patch
-        covers where no fill covers them fully, summed over the frames: 0, the hole filler's
-        last pass covers them), ``spawned_on_bare`` (patches that last pass spawned).
+        distance of the chosen patches, px^2/frame^2), ``bare_pixels`` (output pixels that show
+        the patches, i.e. no in-footage fill covers them fully and no transplant at all, and that
+        no patch covers, summed over the frames: 0 by construction, since the hole filler's last
+        pass covers every such pixel; a check, not a measurement), ``bare_before_last_pass`` (the
+        same count before that pass: what the cells' own rules left) and ``spawned_on_bare``
+        (patches that last pass spawned).
     """
     s = settings or RenderSettings()
     src_frames = np.asarray(src_frames)
@@ -656,7 +659,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     preserve = s.blend == "variance"
     P = _Patches.empty()
     out = np.empty((n_frames, H, W, 3), np.uint8)
-    spawned = bare_pixels = spawned_on_bare = 0
+    spawned = bare_pixels = bare_before_last = spawned_on_bare = 0
     last_spawn: dict[tuple[int, int], int] = {}
     costs: list[float] = []
     n_live: list[int] = []
@@ -758,8 +761,9 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                         own = tp_alpha[max(gy + o, 0):min(gy + p - o, H), max(gx + o, 0):min(gx + p - o, W), 0]
                         if own.size == 0 or (own > 0).all():
                             continue
-                    if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2 \
-                            and not shows_bare:
+                    # (a bare pixel in its window does not override this: the last pass below
+                    # covers it with a patch centred on the pixel itself, from the pool there)
+                    if solid is not None and n > 0 and solid[gy + p // 2, gx + p // 2] and cov.mean() > 0.2:
                         continue
                     # a patch spawned here is still fading in: wait for it unless pixels are bare
                     if n - last_spawn.get((gy, gx), -fade) < fade and not bare:
@@ -768,7 +772,9 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                     spawn(int(gx), int(gy), 1.0 if n == 0 else 0.35)
         # a bare pixel no cell took (each cell whose window holds it is centred in a transplanted
         # obstacle whose fill covers its own part): a patch centred on it
-        for i, j in np.argwhere(uncovered()):
+        left = uncovered()
+        bare_before_last += int(left.sum())
+        for i, j in np.argwhere(left):
             if accum[i, j, _W] < 1e-6:
                 spawned_on_bare += 1
                 spawn(min(max(int(j) - o - p // 2, -o), W - p + o), min(max(int(i) - o - p // 2, -o), H - p + o),
@@ -792,7 +798,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     dt = time.perf_counter() - t0
     figs = {"time_per_frame_s": dt / n_frames, "patches_mean": float(np.mean(n_live)), "spawned": spawned,
             "data_cost_mean": float(np.mean(costs)) if costs else 0.0, "bare_pixels": bare_pixels,
-            "spawned_on_bare": spawned_on_bare, "mode": s.mode,
+            "bare_before_last_pass": bare_before_last, "spawned_on_bare": spawned_on_bare, "mode": s.mode,
             "source_temporal": temporal, "source_candidates": len(sel.feats),
             "source_candidates_fluid": len(sel.pools["fluid"]), "transplanted_obstacles": len(transplants)}
     return out, figs
