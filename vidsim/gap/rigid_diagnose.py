@@ -433,7 +433,7 @@ def pick_supported(results: dict[str, dict]) -> str | None:
 
     Every candidate is compared on the held-out frames, time jitter included (its held-out gap
     has each held-out frame's own time error fitted on that frame, an optimistic figure for it).
-    Until 6 Dec 2026 the pick was the largest ``closure_of_remaining``, which for jitter is a
+    Until 5 Dec 2026 (session 37) the pick was the largest ``closure_of_remaining``, which for jitter is a
     *training* closure: 16 free time errors closing 0.88 of the training excess beat a time
     offset that closed 0.74 of the held-out excess although jitter left the larger held-out gap
     (69 against 55 px; docs/gap.md, "Comparing like with like")."""
