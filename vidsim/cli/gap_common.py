@@ -34,9 +34,19 @@ def write_diagnosis(d: Any, out: Path, inputs: dict, masks: np.ndarray, stage: s
     plot_diagnosis(d, tmp / "diagnosis.png", title=title, floor_label=floor_label)
     with make_logger(tmp / "diagnosis.rrd", f"vidsim.{stage}", rerun) as lg:
         log_diagnosis(lg, d, masks)
-    print(f"{stage} {title}: {d.verdict} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
+    print(f"{stage} {title}: {verdict_text(d)} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
           f"floor {d.floor_test.mean():.1f} px, {d.seconds:.0f} s)", file=sys.stderr)
     replace_dir(tmp, out)
+
+
+def verdict_text(d: Any) -> str:
+    """The verdict, and for each named effect the supported candidates the held-out frames could
+    not tell from it (``as_good_on_heldout`` of its refit), e.g. "explained by time_offset (grips);
+    undecided: time_offset as good as rolling_shutter on the held-out frames"."""
+    keys = d.named_refit_keys() if hasattr(d, "named_refit_keys") else ["+".join(d.named[: i + 1]) for i in range(len(d.named))]
+    alike = [f"{n} as good as {', '.join(r['as_good_on_heldout'])}" for n, k in zip(d.named, keys)
+             for r in [d.refits.get(k, {})] if r.get("as_good_on_heldout")]
+    return d.verdict + (f"; undecided: {'; '.join(alike)} on the held-out frames" if alike else "")
 
 
 def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: str = FLOOR_LABEL) -> None:
@@ -61,7 +71,7 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: 
         ax[0].plot(fr, np.asarray(r["gap_per_frame_after_px"]), ".-", label=f"+ {name}")
     ax[0].set_xlabel("frame")
     ax[0].set_ylabel("mismatch, full-res pixels")
-    ax[0].set_title(f"where: gap per frame -- {d.verdict}", fontsize=9)
+    ax[0].set_title(f"where: gap per frame -- {verdict_text(d)}", fontsize=9)
     ax[0].legend(fontsize=7)
     items = sorted(((k, v) for k, v in d.screen.items() if "rank" in v), key=lambda kv: kv[1]["rank"])
     names = [k for k, _ in items]
@@ -95,7 +105,7 @@ def log_diagnosis(lg: Any, d: RigidDiagnosis, masks: np.ndarray, prefix: str = "
             lg.scalar(f"{prefix}metric/gap_after_{name.replace(':', '_')}_px", float(g[i]))
     lg.set_frame(int(d.frames[-1]))
     lg.image(f"{prefix}gap/heatmap", _heat_rgb(d.signed_heatmap))
-    lg.text(f"{prefix}gap/verdict", d.verdict)
+    lg.text(f"{prefix}gap/verdict", verdict_text(d))
 
 
 def _heat_rgb(h: np.ndarray) -> np.ndarray:

@@ -296,3 +296,22 @@ def test_the_suite_headline_counts_decided_names_apart():
     h = headline(scores)
     assert h["named_first_correct"] == "3/4"
     assert h["named_first_correct_decided"] == "1/4"
+
+
+def test_the_report_says_which_names_are_undecided():
+    """The verdict line of the report (stderr, figure title, Rerun text) lists, for each named
+    effect, the candidates as good on the held-out frames; a decided name adds nothing."""
+    from types import SimpleNamespace
+
+    from vidsim.cli.gap_common import verdict_text
+
+    d = SimpleNamespace(verdict="explained by angular_drag, magnus", named=["angular_drag", "magnus"],
+                        refits={"angular_drag": {"as_good_on_heldout": ["drag_torque"]},
+                                "angular_drag+magnus": {"as_good_on_heldout": []}})
+    assert verdict_text(d) == ("explained by angular_drag, magnus; undecided: angular_drag as good as drag_torque "
+                               "on the held-out frames")
+    d.refits["angular_drag"]["as_good_on_heldout"] = []
+    assert verdict_text(d) == d.verdict
+    # a refit from before the field existed: nothing added
+    d.refits = {"angular_drag": {}, "angular_drag+magnus": {}}
+    assert verdict_text(d) == d.verdict
