@@ -60,8 +60,9 @@ def headline(scores: dict[str, dict]) -> dict:
     rec = [r["rel_error"] for s in single for r in s.get("recovery", {}).values()]
     return {
         "named_first_correct": f"{sum(s['correct'] for s in single)}/{len(single)}",
-        # ... and no other supported candidate as good on the held-out frames (a paired test; cases
-        # scored before 5 Dec 2026, session 37, lack the field and are not counted as decided)
+        # ... and no other supported candidate as good on the held-out frames (a paired test); a
+        # score without the list (not tested: a jointly named pair, too few held-out frames, or a
+        # case file scored before the field existed) is not counted as decided
         "named_first_correct_decided": f"{sum(s['correct'] and s.get('named_first_as_good') == [] for s in single)}"
                                        f"/{len(single)}",
         "null_cases_naming_nothing": f"{sum(s['correct'] for s in nulls)}/{len(nulls)}",

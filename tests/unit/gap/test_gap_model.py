@@ -257,10 +257,10 @@ def test_the_named_candidate_is_the_one_leaving_the_least_heldout_gap():
 
 def test_a_candidate_the_heldout_frames_cannot_tell_from_the_named_one_is_reported():
     """The paired test of ``as_good_on_heldout``: per-frame held-out gaps of the cloth suite's
-    time-offset case (5 Dec 2026) leave the rolling shutter 5.0 px worse on average with a
-    standard error of 5.7 (undecided); a candidate worse on every frame by 10-14 px is told apart,
+    time-offset case (5 Dec 2026, the polished refit's) leave the rolling shutter 5.0 px worse on
+    average with a standard error of 5.7 (undecided); a candidate worse on every frame by 10-14 px is told apart,
     and an unsupported one is never listed."""
-    from vidsim.gap.rigid_diagnose import as_good_on_heldout
+    from vidsim.gap.rigid_diagnose import as_good_on_heldout, heldout_comparison
 
     held = np.array([1, 4, 7, 10, 13])
     g = np.full(16, 50.0)
@@ -277,8 +277,15 @@ def test_a_candidate_the_heldout_frames_cannot_tell_from_the_named_one_is_report
     # the training frames do not count: a candidate far worse there but equal on held-out is listed
     step["time_rate"]["gap_per_frame_after_px"] = np.where(np.isin(np.arange(16), held), g, 500.0).tolist()
     assert as_good_on_heldout(step, "time_offset", held) == ["rolling_shutter", "time_rate"]
-    # a tighter test (z = 0.5) tells the shutter apart
-    assert as_good_on_heldout(step, "time_offset", held, z=0.5) == ["time_rate"]
+    # a looser level (t quantile 0.27 instead of 2.78) tells the shutter apart
+    assert as_good_on_heldout(step, "time_offset", held, level=0.6) == ["time_rate"]
+    # the comparison behind it is kept: mean difference, standard error, frames
+    cmp = heldout_comparison(step, "time_offset", held)
+    assert cmp["rolling_shutter"]["n"] == 5 and cmp["rolling_shutter"]["mean_diff_px"] == pytest.approx(4.96)
+    assert cmp["rolling_shutter"]["se_px"] == pytest.approx(np.std([-0.3, -7.1, -3.7, 12.1, 23.8], ddof=1) / np.sqrt(5))
+    assert "lens_k1" not in cmp  # unsupported
+    # one held-out frame cannot test anything: None (not tested), not an empty list (decided)
+    assert as_good_on_heldout(step, "time_offset", held[:1]) is None
 
 
 def test_the_suite_headline_counts_decided_names_apart():
