@@ -97,7 +97,8 @@ class _Budget(Exception):
 
 
 def anneal(f: Callable[[np.ndarray], float], u0: np.ndarray, cfg: AnnealConfig,
-           progress: Callable[[int, float, float], None] | None = None) -> AnnealResult:
+           progress: Callable[[int, float, float], None] | None = None,
+           observe: Callable[[float, float], None] | None = None) -> AnnealResult:
     """Minimise ``f`` over the unit cube from ``u0``.
 
     Args:
@@ -105,6 +106,12 @@ def anneal(f: Callable[[np.ndarray], float], u0: np.ndarray, cfg: AnnealConfig,
         u0: (n,) start (e.g. the best point of the coarse grid).
         cfg: budget and schedule.
         progress: called as ``progress(n_evals, best_f, T)`` after each evaluation.
+        observe: called as ``observe(y, y_reject)`` after each simplex move's evaluation (reflect,
+            expand, contract; not the shrinks and resets, whose values are all kept): the move is
+            rejected exactly when ``y >= y_reject`` (the simplex's fluctuated worst value minus the
+            trial's fluctuation), so ``y_reject`` is the value beyond which the evaluation's exact
+            value did not matter. For measurements (benchmarks/bench_anneal_censoring.py); it does
+            not change the run.
     """
     rng = np.random.default_rng(cfg.seed)
     u0 = np.clip(np.asarray(u0, float), 0, 1)
@@ -160,7 +167,10 @@ def anneal(f: Callable[[np.ndarray], float], u0: np.ndarray, cfg: AnnealConfig,
                     fac2 = fac1 - fac
                     ptry = psum * fac1 - P[ihi] * fac2
                     ytry = ev(ptry)
-                    yfl = ytry + T * np.log(rng.random())  # negative fluctuation on the trial
+                    lfl = T * np.log(rng.random())  # negative fluctuation on the trial
+                    yfl = ytry + lfl
+                    if observe is not None:
+                        observe(ytry, yhi - lfl)
                     if yfl < yhi:
                         P[ihi] = np.clip(ptry, 0, 1)
                         Y[ihi] = ytry

@@ -196,3 +196,41 @@ def test_cmaes_spends_exactly_its_budget_restarting_after_an_early_stop():
     assert len(trq) == 400 and fq < 1e-10 and np.all((uq >= 0) & (uq <= 1))
     with pytest.raises(ConfigError, match="seed"):
         cmaes(flat_then_bowl, np.full(3, 0.2), 10, seed=-1)
+
+
+def test_observe_reports_the_exact_rejection_threshold_and_changes_nothing():
+    """``observe(y, y_reject)``: a move is rejected exactly when y >= y_reject. Replacing every
+    rejected move's value by a larger one (what an early-stopped simulation would report) must
+    leave the run unchanged, and one value just under its threshold must change it."""
+    cfg = AnnealConfig(budget=400, seed=3)
+    u0 = np.array([0.2, 0.3, 0.25])
+    plain = anneal(rosenbrock, u0, cfg)
+    n_calls = [0]
+
+    def counted(u):
+        n_calls[0] += 1
+        return rosenbrock(u)
+
+    seen = []  # (evaluation index, y, threshold)
+    observed = anneal(counted, u0, cfg, observe=lambda y, thr: seen.append((n_calls[0] - 1, y, thr)))
+    assert np.array_equal(plain.trace, observed.trace)
+    assert all(plain.trace[i] == y for i, y, _ in seen)
+    censored = {i for i, y, thr in seen if y >= thr}
+    assert 0 < len(censored) < len(seen)  # both outcomes occur
+
+    def run_with(change):
+        k = [0]
+
+        def f(u):
+            i = k[0]
+            k[0] += 1
+            return change(i, rosenbrock(u))
+
+        return anneal(f, u0, cfg)
+
+    r = run_with(lambda i, y: 10 * y + 1 if i in censored else y)
+    assert np.array_equal(r.best_u, plain.best_u) and r.best_f == plain.best_f
+    # one rejected move's value lowered to just under its threshold: that move is accepted
+    i_j, _, thr_j = next(s for s in seen if s[1] > s[2] + 1e-6)
+    r2 = run_with(lambda i, y: thr_j - 1e-9 if i == i_j else y)
+    assert not np.allclose(r2.trace[i_j + 1:i_j + 40], plain.trace[i_j + 1:i_j + 40])
