@@ -165,8 +165,9 @@ class RenderSettings:
     or "fixed" (each output patch keeps its source patch and plays the source in time);
     ``velocity_noise`` (px/frame): velocity-patch differences below it are ties, and K more
     candidates are drawn at random within it (0: K nearest only); ``usage``: weight of
-    uniform use of the source (0: off); ``blend``: "linear" feathering or "variance"
-    (contrast-preserving, for stochastic textures such as PIV particles); ``resample``:
+    uniform use of the source (0: off); ``blend``: "linear" feathering, "variance"
+    (contrast-preserving, for stochastic textures such as PIV particles) or "multiband" (the
+    coarse band feathered, the fine band from each pixel's owner patch alone); ``resample``:
     "cubic" (Catmull-Rom) or "linear" sampling of sub-pixel source positions;
     ``added_obstacles``: "transplant" (an obstacle the edit adds shows the footage's temporal
     median of an ``in_footage`` obstacle, mapped onto its shape; patches without one) or
@@ -365,7 +366,7 @@ class EditSpec:
         for key in ("velocity_noise", "usage"):
             if key in rd:
                 rd[key] = _pos(rd[key], f"render.{key}", 0.0, 10.0)
-        for key, allowed in (("mode", ("advected", "fixed")), ("blend", ("linear", "variance")),
+        for key, allowed in (("mode", ("advected", "fixed")), ("blend", ("linear", "variance", "multiband")),
                              ("resample", ("cubic", "linear")), ("added_obstacles", ("transplant", "patches"))):
             if key in rd and rd[key] not in allowed:
                 raise EditSpecError(f"render.{key}={rd[key]!r}, expected one of {list(allowed)}")

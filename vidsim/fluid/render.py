@@ -6,8 +6,9 @@ velocity-patch features) plus K drawn at random among all patches that match wit
 flow's accuracy; the velocity match keeps the ones as good as the best, and among those
 colour consistency with the already-filled output (neighbourhood consistency, in a form
 without L2's bias towards low-contrast patches) and uniform use of the source decide.
-Overlapping patches are blended by linear feathering or by a correlation-aware
-variance-preserving blend (:func:`_compose`); sub-pixel source positions are sampled
+Overlapping patches are blended by linear feathering, by a correlation-aware
+variance-preserving blend or by a two-band blend that feathers the coarse band and takes the
+fine band from one patch per pixel (:func:`_compose`); sub-pixel source positions are sampled
 bicubically.
 
 Sequence modes:
@@ -77,23 +78,50 @@ def _catmull_rom(g: float, w: np.ndarray) -> None:
     w[3] = 0.5 * (g3 - g2)
 
 
+@njit(cache=True)
+def _sample(frames, t, y0, x0, gy, gx, wy, wx, c, cubic):
+    """Channel ``c`` of ``frames[t]`` at (y0 + gy, x0 + gx): Catmull-Rom (weights ``wy``, ``wx``
+    already set for gy, gx) if ``cubic``, else bilinear; taps clamped to the frame."""
+    hs, ws = frames.shape[1:3]
+    if cubic:
+        val = 0.0
+        for dy in range(4):
+            yy = min(max(y0 - 1 + dy, 0), hs - 1)
+            row = 0.0
+            for dx in range(4):
+                xx = min(max(x0 - 1 + dx, 0), ws - 1)
+                row += wx[dx] * frames[t, yy, xx, c]
+            val += wy[dy] * row
+        return val
+    return ((frames[t, y0, x0, c] * (1 - gx) + frames[t, y0, x0 + 1, c] * gx) * (1 - gy)
+            + (frames[t, y0 + 1, x0, c] * (1 - gx) + frames[t, y0 + 1, x0 + 1, c] * gx) * gy)
+
+
 # channels of the splat accumulator (per output pixel)
 _ACC, _MEAN, _W, _W2, _OFF, _OFF2 = slice(0, 3), slice(3, 6), 6, 7, slice(8, 11), 11
-_N_ACC = 12
+_FINE, _WMAX, _OWN = slice(12, 15), 15, slice(16, 19)
+_N_ACC = 19
+# the multi-band blend's fine band: the source minus its Gaussian blur of this x overlap px
+BAND_SIGMA_PER_OVERLAP = 0.5
 
 
 @njit(cache=True)
-def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, frame, accum, colour, cubic):
+def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, frame, accum, colour, cubic, fine):
     """Accumulate patches: output top-left (cx, cy) float, source frame ts, source top-left
-    (sx, sy) float, opacity alpha, at output frame ``frame``. ``accum`` (H, W, 12) sums per
+    (sx, sy) float, opacity alpha, at output frame ``frame``. ``accum`` (H, W, 19) sums per
     output pixel: weight x colour, weight x the patch's mean colour, weight, squared weight,
     weight x the patch's source offset (sx - cx, sy - cy, p (ts - frame)) and weight x its
-    squared norm (for :func:`_compose`). The source is sampled bicubically (Catmull-Rom) if
-    ``cubic``, else bilinearly."""
+    squared norm (for :func:`_compose`); with ``fine`` (the source frames' fine band,
+    :func:`fine_band`; any array of another shape: none) also weight x the fine band, and the
+    largest weight at the pixel with the fine band of the patch that has it (its owner; on
+    ties the earlier patch, i.e. the older). The source is sampled bicubically (Catmull-Rom)
+    if ``cubic``, else bilinearly."""
     T, hs, ws, _ = frames.shape
     ho, wo = accum.shape[:2]
+    bands = fine.shape == frames.shape
     n = p + 1
     buf = np.zeros((n, n, 3))
+    fbuf = np.zeros((n, n, 3))
     wb = np.zeros((n, n))
     wy = np.zeros(4)
     wx = np.zeros(4)
@@ -136,20 +164,10 @@ def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, frame, accum, colour, cubic)
                 if cubic:
                     _catmull_rom(gx, wx)
                 for c in range(3):
-                    if cubic:
-                        val = 0.0
-                        for dy in range(4):
-                            yy = min(max(y0 - 1 + dy, 0), hs - 1)
-                            row = 0.0
-                            for dx in range(4):
-                                xx = min(max(x0 - 1 + dx, 0), ws - 1)
-                                row += wx[dx] * frames[t, yy, xx, c]
-                            val += wy[dy] * row
-                    else:
-                        val = ((frames[t, y0, x0, c] * (1 - gx) + frames[t, y0, x0 + 1, c] * gx) * (1 - gy)
-                               + (frames[t, y0 + 1, x0, c] * (1 - gx) + frames[t, y0 + 1, x0 + 1, c] * gx) * gy)
-                    buf[a, b, c] = val
-                    msum[c] += val
+                    buf[a, b, c] = _sample(frames, t, y0, x0, gy, gx, wy, wx, c, cubic)
+                    msum[c] += buf[a, b, c]
+                    if bands:
+                        fbuf[a, b, c] = _sample(fine, t, y0, x0, gy, gx, wy, wx, c, cubic)
                 mw += 1.0
         for a in range(n):
             for b in range(n):
@@ -168,10 +186,35 @@ def _splat(frames, p, o, cx, cy, ts, sx, sy, alpha, frame, accum, colour, cubic)
                     accum[i, j, 9] += wgt * off1
                     accum[i, j, 10] += wgt * off2
                     accum[i, j, 11] += wgt * (off0 * off0 + off1 * off1 + off2 * off2)
+                    if bands:
+                        owner = wgt > accum[i, j, 15]
+                        if owner:
+                            accum[i, j, 15] = wgt
+                        for c in range(3):
+                            accum[i, j, 12 + c] += wgt * fbuf[a, b, c]
+                            if owner:
+                                accum[i, j, 16 + c] = fbuf[a, b, c]
 
 
-def _compose(accum: np.ndarray, preserve: bool, corr_len: float) -> np.ndarray:
+def fine_band(frames: np.ndarray, sigma: float) -> np.ndarray:
+    """The fine band of float frames ``(T, H, W, C)``: each frame minus its Gaussian blur of
+    ``sigma`` px (border reflected)."""
+    out = np.empty_like(frames)
+    for t in range(len(frames)):
+        out[t] = frames[t] - cv2.GaussianBlur(frames[t], (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    return out
+
+
+def _compose(accum: np.ndarray, preserve: bool, corr_len: float, bands: bool = False) -> np.ndarray:
     """Blend the splatted patches.
+
+    Multi-band (``bands``; Burt & Adelson 1983, as Brown & Lowe 2007 stitch panoramas): the
+    coarse band (colour minus :func:`fine_band`) blended linearly, the fine band that of the
+    pixel's owner alone (the patch of largest weight there, :func:`_splat`): the hard partition
+    a Laplacian pyramid's finest level is blended with. Linear feathering averages the fine
+    texture of overlapping unrelated patches, dividing its contrast by up to ``sqrt(n)``; this
+    shows one patch's own texture at every pixel, and the feather still hides the seams'
+    coarse steps.
 
     Linear (``preserve`` False): the weighted mean, i.e. feathering. Variance-preserving
     (Heitz & Neyret 2018, made correlation-aware): ``mu + (L - mu) g`` with ``L`` the weighted
@@ -184,6 +227,8 @@ def _compose(accum: np.ndarray, preserve: bool, corr_len: float) -> np.ndarray:
     """
     w = np.maximum(accum[..., _W], 1e-9)
     lin = accum[..., _ACC] / w[..., None]
+    if bands:
+        return lin - accum[..., _FINE] / w[..., None] + accum[..., _OWN]
     if not preserve:
         return lin
     w2 = np.maximum(accum[..., _W2], 1e-18)
@@ -657,6 +702,9 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
     cubic = s.resample == "cubic"
     corr_len = correlation_length(src_frames)
     preserve = s.blend == "variance"
+    bands = s.blend == "multiband"
+    # the fine band: scales finer than the feather's ramp, which a linear cross-fade averages away
+    fine = fine_band(src, BAND_SIGMA_PER_OVERLAP * max(o, 1)) if bands else np.zeros((1, 1, 1, 3), np.float32)
     P = _Patches.empty()
     out = np.empty((n_frames, H, W, 3), np.uint8)
     spawned = bare_pixels = bare_before_last = spawned_on_bare = 0
@@ -670,7 +718,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         feat = _window_feature(fpad[cy + o:cy + o + p, cx + o:cx + o + p], p)
         win = accum[cy + o:cy + o + p, cx + o:cx + o + p]
         mask = (win[..., _W] > 0.05).astype(np.float64)
-        existing = _compose(win, preserve, corr_len)
+        existing = _compose(win, preserve, corr_len, bands)
         near = np.flatnonzero((np.abs(P.cx - cx) < p - o) & (np.abs(P.cy - cy) < p - o) & (P.alpha > 0.5))
         # continuations of the overlapping patches; one whose source clip is ending continues
         # from the start of the clip (rewound: for static texture the same content)
@@ -682,7 +730,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         (t, y, x), c = sel.select(feat, existing, mask, coh, mflow, pool=pool)
         P.append(cx, cy, t, x, y, alpha, 1.0 / fade if alpha < 1 else 0.0, sel.in_pool("fluid", y, x))
         _splat(src, p, o, P.cx[-1:] + o, P.cy[-1:] + o, P.ts[-1:], P.sx[-1:], P.sy[-1:], P.alpha[-1:], n, accum, True,
-               cubic)
+               cubic, fine)
         spawned += 1
         costs.append(c)
 
@@ -741,7 +789,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         accum = np.zeros((H + 2 * o, W + 2 * o, _N_ACC))
         fpad = np.pad(field, ((o, o), (o, o), (0, 0)), mode="edge")
         if len(P.cx):
-            _splat(src, p, o, P.cx + o, P.cy + o, P.ts, P.sx, P.sy, P.alpha, n, accum, True, cubic)
+            _splat(src, p, o, P.cx + o, P.cy + o, P.ts, P.sx, P.sy, P.alpha, n, accum, True, cubic, fine)
         sel.set_usage(P.sy, P.sx, P.alpha)
         # fill holes (all of frame 0) in raster order: a cell whose own part (its patch minus
         # the overlaps) is under-covered on average or has an uncovered pixel, or whose window
@@ -780,7 +828,7 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
                 spawn(min(max(int(j) - o - p // 2, -o), W - p + o), min(max(int(i) - o - p // 2, -o), H - p + o),
                       1.0 if n == 0 else 0.35)
         bare_pixels += int(uncovered().sum())
-        img = _compose(accum[o:o + H, o:o + W], preserve, corr_len)
+        img = _compose(accum[o:o + H, o:o + W], preserve, corr_len, bands)
         if fill is not None:
             img = fill_alpha * fill + (1.0 - fill_alpha) * img
         if tp_colour is not None:

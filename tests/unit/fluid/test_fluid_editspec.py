@@ -44,7 +44,7 @@ def test_errors_name_the_key():
          r"constraints\[0\]\.paste\.to \(pasted box\)")
     _bad(lambda d: d.update(optimizer={"init": "magic"}), r"optimizer\.init='magic'")
     _bad(lambda d: d.update(render={"mode": "paint"}), r"render\.mode='paint'")
-    _bad(lambda d: d.update(render={"blend": "soft"}), r"render\.blend='soft', expected one of \['linear', 'variance'\]")
+    _bad(lambda d: d.update(render={"blend": "soft"}), r"render\.blend='soft', expected one of \['linear', 'variance', 'multiband'\]")
     _bad(lambda d: d.update(render={"velocity_noise": -0.1}), r"render\.velocity_noise=-0.1")
     # overlapping sinks (a inside b): both named, the overlap given
     _bad(lambda d: d["sinks"][1].update(box=[0, 26, 32, 32]),

@@ -10,10 +10,11 @@ import pytest
 from vidsim.fluid.edit import EditSpec, RenderSettings
 from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid import render as render_mod
-from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, flicker, patch_distance_ratio,
+from vidsim.fluid.metrics import (EPE_REL_MAX, compensated_flicker, detail_contrast, flicker, patch_distance_ratio,
                                   relative_epe, rendered_flow_epe, static_flicker, static_mask)
 from vidsim.fluid.pipeline import obstacle_transplants, run_edit
-from vidsim.fluid.render import RenderInputError, Transplant, _compose, _consistency, obstacle_alpha, render_sequence
+from vidsim.fluid.render import (_N_ACC, RenderInputError, Transplant, _compose, _consistency, _splat, fine_band,
+                                 obstacle_alpha, render_sequence)
 from vidsim.reality.fluid import make_scene
 
 
@@ -144,6 +145,75 @@ def test_variance_blend_keeps_contrast_of_unrelated_patches_only(rng):
     acc = _two_patch_accumulator(a, a, 0.0)
     np.testing.assert_allclose(_compose(acc, True, 1.0), a, atol=1e-9)
 
+
+
+def _splat_two(src: np.ndarray, fine: np.ndarray, where: list[tuple[float, float, float, float, float]]) -> np.ndarray:
+    """:func:`_splat` of patches (12 px, overlap 4) given as (output x, y, source x, y, alpha)
+    from frame 0 of ``src`` into a 40x40 accumulator."""
+    acc = np.zeros((40, 40, _N_ACC))
+    cx, cy, sx, sy, al = (np.array(c, float) for c in zip(*where))
+    _splat(src, 12, 4, cx, cy, np.zeros(len(cx), np.int64), sx, sy, al, 0, acc, True, True, fine)
+    return acc
+
+
+def test_multiband_blend_of_copies_is_the_texture(rng):
+    """Overlapping patches that are copies of one another (same source offset) blend to the
+    source texture itself, to rounding, in the multi-band blend as in the linear one."""
+    src = rng.uniform(0, 1, (1, 40, 40, 3)).astype(np.float32)
+    fine = fine_band(src, 2.0)
+    acc = _splat_two(src, fine, [(4, 4, 4, 4, 1.0), (12, 6, 12, 6, 1.0), (9, 13, 9, 13, 0.6)])
+    covered = acc[..., 6] > 0
+    assert covered.sum() > 300
+    for bands in (False, True):
+        np.testing.assert_allclose(_compose(acc, False, 1.0, bands)[covered], src[0][covered], atol=1e-5)
+
+
+def test_multiband_blend_takes_the_fine_band_from_one_patch(rng):
+    """Two unrelated patches over each other at equal weight: the linear blend halves the fine
+    band's variance; the multi-band blend shows the coarse bands' mean plus the fine band of the
+    first (older) patch, exactly, so the fine variance is the source's."""
+    src = rng.uniform(0, 1, (1, 40, 40, 3)).astype(np.float32)
+    fine = fine_band(src, 2.0)
+    acc = _splat_two(src, fine, [(10, 10, 2, 3, 0.5), (10, 10, 25, 26, 0.5)])
+    core = np.s_[14:18, 14:18]  # inside both patches' full-weight parts
+    a, b = src[0, 7:11, 6:10], src[0, 30:34, 29:33]
+    fa, fb = fine[0, 7:11, 6:10], fine[0, 30:34, 29:33]
+    np.testing.assert_allclose(_compose(acc, False, 1.0)[core], (a + b) / 2, atol=1e-5)
+    np.testing.assert_allclose(_compose(acc, False, 1.0, True)[core], (a - fa + b - fb) / 2 + fa, atol=1e-5)
+
+
+@pytest.fixture(scope="module")
+def translating():
+    """A stochastic texture (white noise blurred by 1 px) translating right by 1 px/frame, with
+    its exact flow: 40 frames of 64x64."""
+    import cv2
+    r = np.random.default_rng(0)
+    T, H, W = 40, 64, 64
+    big = cv2.GaussianBlur(r.normal(0, 1, (H, W + T + 8)).astype(np.float32), (0, 0), 1.0)
+    big = np.clip(128 + 60 * big / big.std(), 0, 255)
+    frames = np.stack([np.repeat(big[:, T - t:T - t + W, None], 3, -1) for t in range(T)]).astype(np.uint8)
+    flow = np.zeros((T - 1, H, W, 2))
+    flow[..., 0] = 1.0
+    return frames, flow
+
+
+def test_multiband_keeps_fine_contrast_of_a_translated_texture(translating):
+    """The texture translated by the uniform flow it moves with in the footage, 30 frames: the
+    multi-band render keeps the fine-detail contrast (:func:`detail_contrast`) within 5 % of
+    the source's in every frame checked (0.99 / 0.98 / 0.99 at seed 0); the linear feather
+    loses 10-16 % (0.90 / 0.88 / 0.84): overlapping unrelated patches averaged."""
+    frames, flow = translating
+    field = flow[0]
+    ref = detail_contrast(frames[:1])
+    ratios = {}
+    for blend in ("linear", "multiband"):
+        out, figs = render_sequence(frames, flow, field, 30, np.random.default_rng(0), RenderSettings(blend=blend),
+                                    match_flow=field)
+        assert figs["bare_pixels"] == 0
+        ratios[blend] = np.array([detail_contrast(out[i:i + 1]) / ref for i in (0, 10, 29)])
+    print("detail ratio per frame", ratios)
+    assert np.all(np.abs(ratios["multiband"] - 1.0) < 0.05)
+    assert np.all(ratios["linear"] < 0.93)
 
 def test_inflow_edge_is_covered(stream):
     """Patches leaving the inflow edge are replaced before a bare (black) strip opens."""
