@@ -623,6 +623,11 @@ def render_sequence(src_frames: np.ndarray, src_flow: np.ndarray, edited_field: 
         raise RenderInputError(f"edited_field shape {np.shape(edited_field)}, expected (H,W,2) or ({n_frames},H,W,2)")
     if n_frames < 1:
         raise RenderInputError(f"n_frames={n_frames}, expected >= 1")
+    # the settings' names (EditSpec.from_dict checks them too, but a RenderSettings built in Python is not)
+    for key, allowed in (("mode", ("advected", "fixed")), ("blend", ("linear", "variance", "multiband")),
+                         ("resample", ("cubic", "linear"))):
+        if getattr(s, key) not in allowed:
+            raise RenderInputError(f"render.{key}={getattr(s, key)!r}, expected one of {list(allowed)}")
     H, W = ef.shape[1:3]
     p, o = s.patch, s.overlap
     if H < p or W < p or src_frames.shape[1] < p or src_frames.shape[2] < p:

@@ -182,6 +182,36 @@ def test_multiband_blend_takes_the_fine_band_from_one_patch(rng):
     np.testing.assert_allclose(_compose(acc, False, 1.0, True)[core], (a - fa + b - fb) / 2 + fa, atol=1e-5)
 
 
+def test_multiband_fine_band_is_the_largest_weight_patchs(rng):
+    """The fine band at a pixel is that of the patch with the largest weight there, whichever
+    came first: an older faint patch under a newer strong one (alpha 0.3 then 0.9), and two
+    offset patches, each owning the pixels where its feather weighs more than the other's."""
+    src = rng.uniform(0, 1, (1, 40, 40, 3)).astype(np.float32)
+    fine = fine_band(src, 2.0)
+    for pair in ([(12, 12, 3, 4, 0.3), (12, 12, 24, 25, 0.9)], [(10, 12, 3, 4, 1.0), (17, 13, 24, 25, 1.0)]):
+        one = [_splat_two(src, fine, [q]) for q in pair]
+        both = _splat_two(src, fine, pair)
+        wa, wb = one[0][..., 6], one[1][..., 6]
+        overlap = (wa > 0) & (wb > 0) & (wa != wb)
+        assert overlap.sum() > 20
+        own_b = wb > wa
+        assert own_b[overlap].any() and (pair[0][4] == 0.3 or (~own_b)[overlap].any())
+        fa = one[0][..., 12:15] / np.maximum(wa, 1e-12)[..., None]  # each patch's sampled fine band
+        fb = one[1][..., 12:15] / np.maximum(wb, 1e-12)[..., None]
+        coarse = (both[..., 0:3] - both[..., 12:15]) / np.maximum(wa + wb, 1e-12)[..., None]
+        want = coarse + np.where(own_b[..., None], fb, fa)
+        np.testing.assert_allclose(_compose(both, False, 1.0, True)[overlap], want[overlap], atol=1e-5)
+
+
+def test_a_misspelt_blend_is_refused_by_name():
+    f = make_scene("stream_boat", size=32, n_frames=6, seed=0)
+    flow = np.zeros((5, *f.frames.shape[1:3], 2))
+    for key, bad in (("blend", "multi-band"), ("resample", "nearest"), ("mode", "advect")):
+        with pytest.raises(RenderInputError, match=f"render.{key}='{bad}'"):
+            render_sequence(f.frames, flow, np.zeros((*f.frames.shape[1:3], 2)), 2, np.random.default_rng(0),
+                            RenderSettings(**{key: bad}))
+
+
 @pytest.fixture(scope="module")
 def translating():
     """A stochastic texture (white noise blurred by 1 px) translating right by 1 px/frame, with
