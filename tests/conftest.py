@@ -51,8 +51,10 @@ def assert_footage_holds_no_truth(folder) -> None:
 
 
 class truth_hidden:
-    """Context manager: the truth files beside a footage folder (``<folder>.truth*``) are moved away
-    while estimator stages run, so a stage that read them fails instead of passing."""
+    """Context manager: every file or folder beside a footage folder named ``<folder>.*`` (its truth,
+    ``<folder>.truth*``, and its reality recording, ``<folder>.reality.rrd``, which holds the truth
+    too) is moved away while estimator stages run, so a stage that read one fails instead of
+    passing; all of them are put back afterwards."""
 
     def __init__(self, folder) -> None:
         from pathlib import Path
@@ -61,10 +63,12 @@ class truth_hidden:
         self.moved: list = []
 
     def __enter__(self) -> "truth_hidden":
-        for f in self.folder.parent.glob(f"{self.folder.name}.truth*"):
-            dest = f.with_name(f".hidden.{f.name}")
-            f.rename(dest)
-            self.moved.append((dest, f))
+        prefix = f"{self.folder.name}."  # a plain prefix: the glob <name>.* without glob metacharacters
+        for f in sorted(self.folder.parent.iterdir()):
+            if f.name.startswith(prefix):
+                dest = f.with_name(f".hidden.{f.name}")
+                f.rename(dest)
+                self.moved.append((dest, f))
         assert self.moved, f"no truth beside {self.folder} to hide"
         return self
 
