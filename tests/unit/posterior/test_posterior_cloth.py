@@ -9,7 +9,7 @@ import pytest
 from vidsim.posterior.cloth import (ClothPosteriorSettings, FrameEval, cloth_posterior, frame_gradients, pair_design,
                                     score_covariance, weight_from_sandwich)
 from vidsim.posterior.gp import _nll_and_grad, fit_gp
-from vidsim.posterior.sampler import SamplerConfig
+from vidsim.posterior.sampler import PosteriorError, SamplerConfig
 
 D, T, SIG = 3, 30, 0.15
 
@@ -255,5 +255,5 @@ def test_refinement_is_skipped_beyond_the_true_evaluation_cap(tmp_path):
                             settings(max_true_evals=free.n_true_evals, **kw), tmp_path / "a")
     assert again.check["refinement"] == 1 and "refinement_skipped" not in again.check
     assert again.n_new_evals == 0 and again.check["loss_surrogate"] == free.check["loss_surrogate"]
-    with pytest.raises(Exception, match="max_true_evals"):
+    with pytest.raises(PosteriorError, match=r"posterior\.cloth\.max_true_evals = -1: need >= 0"):
         settings(max_true_evals=-1).validate(D)
