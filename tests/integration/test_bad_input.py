@@ -158,7 +158,7 @@ def test_bad_input_gives_one_clear_line(tmp_path, name, mutate, overrides, expec
          f"paths.out={out}", *overrides],
         capture_output=True, text=True, timeout=120,
     )
-    assert r.returncode != 0, f"{name}: accepted"
+    assert r.returncode == 2, f"{name}: exit code {r.returncode}, expected 2 (bad input)"
     assert "Traceback" not in r.stderr, r.stderr
     assert expected in r.stderr, r.stderr
     assert not out.exists() and not (tmp_path / "outside").exists(), "partial outputs left behind"
