@@ -411,7 +411,8 @@ class ClothObjective:
             es.append(np.mean(m_silh, axis=0))
         out.score = float(sum(per))
         if not np.isfinite(out.score):
-            out.ok, out.failure, out.score = False, "non-finite metric", FAILED_SCORE
+            bad = [tr.name for tr, e in zip(self.trials, per) if not np.isfinite(e)]
+            out.ok, out.failure, out.score = False, f"{', '.join(bad) or 'sum over the trials'}: non-finite metric", FAILED_SCORE
         return out
 
     def __call__(self, u: np.ndarray) -> tuple[float, dict]:

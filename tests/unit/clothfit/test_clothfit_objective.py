@@ -130,8 +130,8 @@ def test_simulator_arithmetic_error_is_the_failed_score_naming_the_trial(twin_tr
 
 
 def test_non_finite_metric_is_the_failed_score(twin_trial, monkeypatch):
-    """The simulation completes but the metric is NaN: the score is FAILED_SCORE, not NaN. (This
-    branch's failure text is "non-finite metric": it does not name the trial.)"""
+    """The simulation completes but the metric is NaN: the score is FAILED_SCORE, not NaN, and the
+    failure names the trial whose error is not finite."""
     import vidsim.clothfit.objective as objective
 
     real = objective.cloth_metric
@@ -142,7 +142,7 @@ def test_non_finite_metric_is_the_failed_score(twin_trial, monkeypatch):
 
     obj = _cheap_objective(twin_trial)
     monkeypatch.setattr(objective, "cloth_metric", nan_metric)
-    _assert_failed(obj, "non-finite metric")
+    _assert_failed(obj, "twin/exp1: non-finite metric")
 
 
 def test_bad_inputs_name_the_field(twin_trial):
