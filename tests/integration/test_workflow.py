@@ -119,6 +119,13 @@ def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_d
     cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: ''}\n")
     r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--cores", "2", cwd=wf)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    # the README's command builds the report after the run: without a warning per job (with
+    # Snakemake's default disk_mb, max(2 * input.size_mb, 1000), snakemake 9.27 printed an
+    # un-awaited-coroutine RuntimeWarning per job here; the profiles now set disk_mb)
+    r = _smk("--profile", "workflow/profiles/default", "--configfile", str(cfg), "--report",
+             str(tmp_path / "report.html"), cwd=wf)
+    assert r.returncode == 0 and (tmp_path / "report.html").stat().st_size > 0, r.stderr[-3000:]
+    assert "Warning" not in r.stdout + r.stderr, (r.stdout + r.stderr)[-3000:]
     # nothing changed: nothing to do
     r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
     assert _planned_jobs(r.stdout + r.stderr) == set(), r.stdout
