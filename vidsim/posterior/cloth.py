@@ -100,10 +100,15 @@ class FrameEval:
 
 @dataclass
 class ClothPosteriorSettings:
-    """Settings of :func:`cloth_posterior` (mirrors :class:`vidsim.config.posterior.PosteriorClothConfig`)."""
+    """Settings of :func:`cloth_posterior` (mirrors :class:`vidsim.config.posterior.PosteriorClothConfig`,
+    with the same defaults, the emcee ones in ``sampler``; ``design_spread`` is not in the config).
+    Until 6 Dec 2026 ``hac_bandwidth``, ``refine_rounds``, ``max_true_evals`` and the sampler's
+    ``chunk``, ``min_steps``, ``max_steps`` defaulted to 0, 1, 0 and 200, 400, 4000 here, so a
+    posterior made through the Python API differed from the stage's by default
+    (``tests/unit/test_config_mirrors.py``)."""
 
     noise: str = "sandwich"
-    hac_bandwidth: int = 0
+    hac_bandwidth: int = 2
     design_rounds: int = 2
     n_pairs: int = 0
     design_scale: float = 0.05
@@ -117,11 +122,11 @@ class ClothPosteriorSettings:
     gp_restarts: int = 2
     n_check: int = 50
     check_tol: float = 1.0
-    refine_rounds: int = 1
-    max_true_evals: int = 0
+    refine_rounds: int = 2
+    max_true_evals: int = 200
     multimodal_ratio: float = 0.01
     distinct: float = 0.1
-    sampler: SamplerConfig = field(default_factory=SamplerConfig)
+    sampler: SamplerConfig = field(default_factory=lambda: SamplerConfig(chunk=500, min_steps=1000, max_steps=20000))
     seed: int = 0
 
     def validate(self, D: int) -> None:

@@ -44,7 +44,10 @@ class LinearFrames:
 
 
 def settings(**kw) -> ClothPosteriorSettings:
+    """Small settings for these tests (the stage's defaults are larger: one refinement, no HAC
+    window, no cap on true evaluations unless a test sets them)."""
     sk = {k: kw.pop(k) for k in list(kw) if k in ("max_steps", "min_steps", "chunk")}
+    kw = {"hac_bandwidth": 0, "refine_rounds": 1, "max_true_evals": 0, **kw}
     return ClothPosteriorSettings(sampler=SamplerConfig(n_walkers=16, **{"chunk": 200, "min_steps": 400,
                                                                          "max_steps": 4000, **sk}), **kw)
 
