@@ -4,8 +4,9 @@ All planned outputs are created as empty files and recorded as up to date (``--t
 run then plans nothing; after a change of linen's ``per_fabric`` overrides it plans linen's fits,
 linen's selection and profile, and the validation and skirt matrices (which read every fabric),
 and nothing of satin's (its fits, its CMA-ES and joint fits of the method comparison) nor of the
-twin's. A rule that shares another stage's settings (the joint fit shares the annealing fit's)
-reads that stage's ``overrides:`` entry and then its own, and its own entry reruns it alone.
+twin's. A rule that shares another stage's settings (the joint fit shares the annealing fit's, the
+CMA-ES selection the selection's) reads that stage's ``overrides:`` entry and then its own, and its
+own entry reruns it alone.
 """
 
 from __future__ import annotations
@@ -80,6 +81,10 @@ def test_one_fabric_change_reruns_only_that_fabric(tmp_path):
     # own: the joint fit's own entry reruns the joint fit and the comparison that reads it, nothing else
     planned = _planned(_config(tmp_path, {}, {"fit_cloth_joint": "cloth.fit.seed=3"}))
     assert planned == [("all", ""), ("compare_cloth", ""), ("fit_cloth_joint", "fabric=satin")], planned
+    # so does the CMA-ES selection, which shares the selection's settings (its own entry was ignored
+    # until 6 Dec 2026)
+    planned = _planned(_config(tmp_path, {}, {"select_cloth_cmaes": "cloth.select.polish_budget=7"}))
+    assert planned == [("all", ""), ("compare_cloth", ""), ("select_cloth_cmaes", "fabric=satin")], planned
     # and the shared entry reaches the annealing, CMA-ES and joint fits alike
     planned = _planned(_config(tmp_path, {}, {"fit_cloth": "cloth.fit.seed=3"}))
     assert {r for r, _ in planned} >= {"fit_cloth", "fit_cloth_cmaes", "fit_cloth_joint"}, planned

@@ -450,6 +450,14 @@ use rule select_cloth as select_cloth_cmaes with:
     output:
         params=f"{RESULTS}/cloth/select_cmaes/{{fabric}}/params.yaml",
         table=f"{RESULTS}/cloth/select_cmaes/{{fabric}}/table.csv",
+    params:
+        conf=CONF_CLOTH,
+        out=get_out_dir,
+        inputs=cloth_select_inputs,
+        base=STAGE_BASE,
+        extra=stage_own("select_cloth", "select_cloth_cmaes"),
+        cloth=CLOTH_HYDRA,
+        fabric=cloth_fabric_overrides,
     benchmark:
         f"{RESULTS}/benchmarks/select_cloth_cmaes_{{fabric}}.tsv"
     log:
