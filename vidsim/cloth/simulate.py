@@ -81,9 +81,9 @@ class ClothInputError(ValueError):
 
 
 class ClothStepError(ClothInputError):
-    """A fixed step ``dt`` beyond what these parameters allow (with a settle bath): for a caller
-    that sweeps parameters at a fixed step (the gap diagnosis), a failed run of that parameter set
-    rather than a wrong input."""
+    """A step beyond what these parameters allow with a settle bath (a fixed ``dt``, or the stable
+    step of stiff parameters times a strong bath): for a caller that sweeps parameters (a fit, the
+    gap diagnosis), a failed run of that parameter set rather than a wrong input."""
 
 
 @dataclass(frozen=True)
@@ -706,7 +706,8 @@ def simulate(
         stats["damping"] = mode
         r = _multirate(multirate, mesh, params, x, driver, dt_used, bending, stats, mode)
         if settle_bath * dt_used > 0.5:
-            raise ClothInputError(f"settle_bath {settle_bath} 1/s is too strong for the step {dt_used:.3g} s "
+            # the step depends on the parameters: for an optimiser sweeping them, a failed run of this set
+            raise ClothStepError(f"settle_bath {settle_bath} 1/s is too strong for the step {dt_used:.3g} s "
                                   f"(explicit damping needs settle_bath * dt <= 0.5)")
         out, outv, done, status, steps, rej, nev, halvings, dt_used = _fast_with_retry(
             t0, x, v, times, model, P, drv, col, dt_used, int(max_steps), float(v_max),

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vidsim.cloth import ESTIMATED_NAMES, ClothParams, mid_range_params, simulate
-from vidsim.cloth.simulate import DAMPING_MODES
+from vidsim.cloth.simulate import DAMPING_MODES, ClothStepError
 from vidsim.clothfit.features import ClothFeatures, FeatureSettings, angle_features
 from vidsim.clothfit.film import swatch_driver, swatch_model_mesh
 from vidsim.clothfit.rig import SkirtBody, skirt_fold_starts, skirt_model_rig
@@ -378,7 +378,8 @@ class ClothObjective:
                     res = simulate(mesh, pk, drv, tr.times, integrator=self.model.integrator, t0=t0, colliders=col,
                                    settle_bath=self.model.settle_bath, x0=x0, multirate=self._multirate,
                                    damping=self.model.damping)
-                except ArithmeticError as e:  # a numerical fault inside the simulator is a failed run
+                except (ArithmeticError, ClothStepError) as e:  # a numerical fault, or a step these
+                    # parameters cannot take with the settle bath: a failed run of this set
                     timing["simulate"] += time.perf_counter() - t
                     out.ok, out.failure = False, f"{tr.name}{member}: simulator raised {type(e).__name__}: {e}"
                     return out

@@ -183,8 +183,8 @@ class EvalCache:
         else:
             try:
                 out = self.fn(u)
-            except FloatingPointError:
-                out = FAILED_SCORE
+            except (ArithmeticError, np.linalg.LinAlgError) as e:  # a numerical fault is a failed point
+                out = (FAILED_SCORE, {"failure": f"{type(e).__name__}: {e}"})
             f, info = (out if isinstance(out, tuple) else (out, {}))
             f = float(f)
             if not math.isfinite(f):
@@ -202,8 +202,9 @@ class EvalCache:
     def evaluate(self, u: np.ndarray, fn: Callable[[np.ndarray], Any] | None = None) -> tuple[float, dict]:
         """``(f, info)`` of the point ``u``: replayed from the log, or computed once by ``fn``
         (which becomes the cache's function; None: the one it has) and logged. For callers whose
-        result lives in ``info`` (a stage's end point, a calibration): a failure (a floating-point
-        error, a non-finite score) gives ``FAILED_SCORE`` and an ``info`` without their fields."""
+        result lives in ``info`` (a stage's end point, a calibration): a failure (a numerical fault,
+        ArithmeticError or LinAlgError, or a non-finite score) gives ``FAILED_SCORE`` and an ``info``
+        without their fields (only ``failure``, the reason)."""
         if fn is not None:
             self.fn = fn
         f = self(u)

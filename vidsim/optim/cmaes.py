@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
 
 from vidsim.errors import ConfigError
+from vidsim.optim import FAILED_SCORE
 
 #: seed offset between restarts (any odd number; restart 0 keeps the seed ``seed + 1``)
 _RESTART_SEED_STRIDE = 7919
@@ -46,6 +48,8 @@ def cmaes(f: Callable[[np.ndarray], float], u0: np.ndarray, budget: int, sigma0:
             ys = []
             for x in X:
                 y = float(f(np.clip(np.asarray(x), 0, 1)))
+                if not math.isfinite(y):  # cma would silently replace it by the generation's median
+                    y = FAILED_SCORE
                 trace.append(y)
                 ys.append(y)
                 if y < best[1]:

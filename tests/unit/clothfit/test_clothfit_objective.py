@@ -129,6 +129,16 @@ def test_simulator_arithmetic_error_is_the_failed_score_naming_the_trial(twin_tr
     _assert_failed(obj, "twin/exp1: simulator raised ZeroDivisionError: float division by zero")
 
 
+def test_a_settle_bath_too_strong_for_the_parameters_step_is_the_failed_score(twin_trial):
+    """The simulator's stable step depends on the parameters, so a settle bath that step cannot
+    carry (bath x step > 0.5) is a failed run of that parameter set, not a crash of the fit (the
+    simulator raised ClothInputError, which the objective did not catch, until 6 Dec 2026)."""
+    tr, fs = twin_trial
+    space = space_from_config({"shear": {"lo": 0.1, "hi": 500.0, "log": True}})
+    obj = ClothObjective([tr], space, model=ModelSettings(resolution=8, settle_s=0.2, settle_bath=1e4), features=fs)
+    _assert_failed(obj, "twin/exp1: simulator raised ClothStepError: settle_bath 10000.0 1/s is too strong")
+
+
 def test_non_finite_metric_is_the_failed_score(twin_trial, monkeypatch):
     """The simulation completes but the metric is NaN: the score is FAILED_SCORE, not NaN, and the
     failure names the trial whose error is not finite."""

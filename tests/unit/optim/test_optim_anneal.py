@@ -161,6 +161,33 @@ def test_nan_without_a_cache_is_a_bad_score_for_anneal_and_grid():
     assert r.best_f < 1e-3  # from 0.094 at the start
     vals, best = grid_search(nan_left, grid_points([0, 1], 4))
     assert not np.any(np.isnan(vals)) and best[0] > 0.3
+    # CMA-ES too: cma itself would replace a NaN by the generation's median, silently
+    from vidsim.optim.cmaes import cmaes
+
+    _, fb, tr = cmaes(nan_left, np.array([0.31, 0.5]), 200, sigma0=0.2, seed=0)
+    assert FAILED_SCORE in tr and not np.any(np.isnan(tr)) and fb < 1e-3
+
+
+def test_cache_turns_a_numerical_fault_into_a_failed_score_it_names(tmp_path):
+    """A numba kernel's division by zero raises ZeroDivisionError (an ArithmeticError, not a
+    FloatingPointError) and a singular solve LinAlgError: both are failed points, logged with
+    their reason, not crashes of the fit; any other error still stops it."""
+    def faulty(u):
+        if u[0] < 0.3:
+            raise ZeroDivisionError("division by zero")
+        if u[0] > 0.9:
+            raise np.linalg.LinAlgError("Singular matrix")
+        if 0.5 < u[0] < 0.51:
+            raise ValueError("a bug, not a numerical fault")
+        return float(np.sum((u - 0.6) ** 2))
+
+    with EvalCache(faulty, tmp_path / "evals.jsonl") as f:
+        assert f(np.array([0.1, 0.5])) == FAILED_SCORE and f(np.array([0.95, 0.5])) == FAILED_SCORE
+        assert f(np.array([0.6, 0.6])) == 0.0
+        with pytest.raises(ValueError, match="a bug"):
+            f(np.array([0.505, 0.5]))
+    log = (tmp_path / "evals.jsonl").read_text()
+    assert "ZeroDivisionError: division by zero" in log and "LinAlgError: Singular matrix" in log
 
 
 def test_bad_seed_step_and_space_types_are_refused_by_name():
