@@ -56,6 +56,10 @@ def _n_frames_mismatch(f, _):
     _edit_yaml(f / "meta.yaml", lambda d: d.update(n_frames=50))
 
 
+def _n_frames_text(f, _):
+    _edit_yaml(f / "meta.yaml", lambda d: d.update(n_frames="4"))
+
+
 def _zero_fps(f, _):
     _edit_yaml(f / "meta.yaml", lambda d: d.update(fps=0))
 
@@ -135,6 +139,7 @@ CASES = [
     # found by an audit of the stages' bad input (4 Dec 2026)
     ("meta.yaml not text", _binary_meta, [], "meta.yaml: not a text YAML file"),
     ("meta n_frames vs frames", _n_frames_mismatch, [], "field 'n_frames' = 50 but the folder holds 4 frames"),
+    ("meta n_frames as text", _n_frames_text, [], "field 'n_frames' = '4': expected a whole number of frames"),
     ("zero frame rate in meta", _zero_fps, [], "field 'fps' = 0 is not valid"),
     ("truncated JPEG frame", _truncated_jpeg, [], "000001.jpg: truncated JPEG"),
     ("NaN in any setting", _nothing, ["fluid.flow.temporal_sigma=nan"], "fluid.flow.temporal_sigma = nan"),

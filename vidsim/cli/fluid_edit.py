@@ -38,7 +38,7 @@ from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
 from vidsim.errors import ConfigError, FootageError
-from vidsim.fluid.edit import EditSpec
+from vidsim.fluid.edit import EditSpec, EditSpecError
 from vidsim.fluid.footage import resolve_footage
 from vidsim.fluid.flow import estimate_flow
 from vidsim.fluid.pipeline import (UndeclaredObstacleWarning, run_edit, undeclared_obstacle_message, undeclared_obstacles,
@@ -248,8 +248,11 @@ def run(cfg: DictConfig) -> None:
     t0 = time.perf_counter()
     with warnings.catch_warnings():  # said above, in one line each
         warnings.simplefilter("ignore", UndeclaredObstacleWarning)
-        r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
-                     resume=resume, on_iter=on_iter, on_frame=on_frame)
+        try:
+            r = run_edit(frames, spec, np.random.default_rng(cfg.seed + spec.render.seed), n_frames, flow=flow,
+                         resume=resume, on_iter=on_iter, on_frame=on_frame)
+        except EditSpecError as e:  # a diverged optimisation, a grid the footage does not give
+            raise ConfigError(f"{ec.spec}: {e}") from None
     total = time.perf_counter() - t0
     res, figs, outf = r["edit"], r["figures"], r["frames"]
     print(f"fluid_edit: optimisation stopped after {res.figures['iterations']} iterations "
@@ -258,8 +261,6 @@ def run(cfg: DictConfig) -> None:
           f"({100 * res.figures['fraction_in_desired_sink_init']:.1f} % at initialisation; median "
           f"{res.figures['arrival_frames_median']:.0f} frames to get there, "
           f"{100 * figs['fraction_arriving_within_render']:.1f} % within the {n_frames} rendered frames)", flush=True)
-    if not res.ok:
-        raise ConfigError(f"{ec.spec}: the optimisation became non-finite (objective NaN/inf); check weights and step")
     names = [s.name for s in spec.sinks]
     per_sink = {}
     for k, nm in enumerate(names):

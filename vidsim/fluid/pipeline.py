@@ -172,6 +172,9 @@ def run_edit(src_frames: np.ndarray, spec: EditSpec, rng: np.random.Generator, n
         warnings.warn(undeclared_obstacle_message(u), UndeclaredObstacleWarning, stacklevel=2)
     step = max(1, g.shape[0] // 12)
     res: EditResult = edit_field(g.mean(0), spec, g[::step], resume=resume, on_iter=on_iter)
+    if not res.ok:  # said before the render, which would take minutes for nothing
+        raise EditSpecError(f"the optimisation became non-finite (objective NaN/inf) after "
+                            f"{res.figures.get('iterations', 0)} iterations; check the edit's weights and step")
     ds = spec.downsample
     H, W = spec.height * ds, spec.width * ds
     field_px = upsample_field(res.field, ds, (H, W))

@@ -362,6 +362,8 @@ def read_footage(folder: str | os.PathLike, required_meta: tuple[str, ...] = (),
     cams = read_calibration(folder / "calibration.yaml", frame_size=(frames.shape[2], frames.shape[1]))
     meta = read_meta(folder / "meta.yaml", required=required_meta)
     n_meta = meta.get("n_frames")
+    if n_meta is not None and (isinstance(n_meta, bool) or not isinstance(n_meta, int)):
+        raise FootageError(f"{folder / 'meta.yaml'}: field 'n_frames' = {n_meta!r}: expected a whole number of frames")
     if n_meta is not None and max_frames is None and n_meta != frames.shape[0]:
         raise FootageError(f"{folder / 'meta.yaml'}: field 'n_frames' = {n_meta!r} but the folder holds "
                            f"{frames.shape[0]} frames")

@@ -218,4 +218,6 @@ def merge_recordings(parts: list[str | os.PathLike], dest: str | os.PathLike) ->
         tmp.unlink(missing_ok=True)
         tail = (r.stderr or r.stdout).strip().splitlines()[-3:]
         raise RuntimeError(f"{dest}: merging {len(parts)} recordings failed ({' | '.join(tail)})")
+    with open(tmp, "rb") as fh:  # on disk before the rename, as io.atomic does
+        os.fsync(fh.fileno())
     os.replace(tmp, dest)

@@ -529,6 +529,28 @@ def test_added_obstacles_fall_back_to_patches(stream, monkeypatch):
     assert seen[0][0].src_center == (36.5, 48.5) and seen[0][0].center == (68.5, 26.5)
 
 
+def test_a_diverged_optimisation_stops_before_the_render(stream, monkeypatch):
+    """An edit whose optimisation became non-finite is refused with its iteration count before
+    the render starts (the stage rendered and measured every frame first until 6 Dec 2026)."""
+    import types
+
+    import vidsim.fluid.pipeline as pipeline_mod
+    from vidsim.fluid.edit import EditSpecError
+
+    frames, flow = stream
+    monkeypatch.setattr(pipeline_mod, "edit_field",
+                        lambda *a, **k: types.SimpleNamespace(ok=False, figures={"iterations": 3}))
+    rendered = []
+    monkeypatch.setattr(pipeline_mod, "render_sequence", lambda *a, **k: rendered.append(1))
+    spec = EditSpec.from_dict({
+        "grid": {"height": 48, "width": 48}, "downsample": 2,
+        "sources": [{"box": [0, 2, 1, 46], "distribution": "out"}], "sinks": [{"name": "out", "box": [47, 1, 48, 47]}],
+        "render": {"frames": 2}})
+    with pytest.raises(EditSpecError, match=r"non-finite .* after 3 iterations"):
+        run_edit(frames, spec, np.random.default_rng(0), flow=flow)
+    assert rendered == []
+
+
 def test_an_added_obstacle_overlapping_the_footage_one_leaves_it_dark(dark_disc):
     """An added disc (centre (50, 24), radius 6 px) overlapping the footage's dark disc (centre
     (40, 24), radius 8 px): the added disc's blend ring must not lay the source's surroundings over
