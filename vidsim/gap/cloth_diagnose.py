@@ -77,8 +77,7 @@ from vidsim.gap.cloth_model import CLOTH_EFFECTS, ClothGapError, ClothGapModel, 
 from vidsim.gap.rigid_diagnose import Problem as RigidProblem, blur_threshold_refit, frame_sandwich_cov, joint_pair_search
 from vidsim.gap.rigid_diagnose import rank_screen, score_screen
 from vidsim.gap.rigid_diagnose import _fit_one_number, _heldout_time_fit, _lag1, _white_fraction
-from vidsim.gap.rigid_diagnose import (as_good_on_heldout, beats_placebo, heldout_comparison, jitter_search_bound,
-                                      pick_supported)
+from vidsim.gap.rigid_diagnose import beats_placebo, forward_select, jitter_search_bound
 from vidsim.io.atomic import atomic_path
 from vidsim.optim.cache import fingerprint
 
@@ -1289,10 +1288,10 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
             return None
         return (ho0 - res["heldout_after_px"]) / (ho0 - floor_mean)
 
-    def polish(effects: tuple[str, ...], res: dict, step: int) -> dict:
-        """Continue a named effect's refit from where it stopped (see ``polish_nfev``)."""
+    def polish(effects: tuple[str, ...], res: dict, p0: dict | None) -> dict:
+        """Continue a named effect's refit from where it stopped (see ``polish_nfev``; ``p0``: the
+        refit of the effects named before it, None for the base model)."""
         pol = judge(effects, np.asarray(res["theta"]), cfg.polish_nfev, search=False)
-        p0 = None if step == 0 else refits["+".join(effects[:-1])]
         pol["supported"] = res["supported"]
         pol["closure_of_remaining"] = strength(pol, effects[-1], p0)
         pol["starts_tried"] = res["starts_tried"]
@@ -1302,43 +1301,11 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         note(f"polish {'+'.join(effects)}")
         return pol
 
-    refits: dict[str, dict] = {}
-    conditional: dict[str, dict] = {}
-    named: list[str] = []
-    prev: dict | None = None
-    for step in range(2 if cfg.pairs else 1):
-        if step == 0:
-            pool = ranked
-        else:
-            rest = [c for c in cands if c not in named
-                    and not any(c in CLOTH_EFFECTS[k].alias or k in CLOTH_EFFECTS[c].alias for k in named)]
-            if not rest or prev["heldout_after_px"] - floor_mean <= cfg.min_excess * floor_mean:
-                break
-            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest,
-                             prev["params"].get("motion_blur", {}).get("segmentation_threshold"))
-            pool = sorted(rest, key=lambda c: scr[c]["rank"])
-            note("conditional screen")
-            conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}
-        step_res: dict[str, dict] = {}
-        for c in pool[: cfg.top_k]:
-            effs = tuple(named) + (c,)
-            res = judge(effs, None if prev is None else np.asarray(prev["theta"]))
-            res["supported"] = bool(gap_present and supported(res, c, prev))
-            res["closure_of_remaining"] = strength(res, c, prev)
-            refits["+".join(effs)] = step_res[c] = res
-            note(f"refit {'+'.join(effs)}")
-        best = pick_supported(step_res)
-        if best is None:
-            break
-        named.append(best)
-        prev = refits["+".join(named)]
-        # compared before the polish (the other candidates had the same budget); the unpolished
-        # per-frame gaps are kept under before_polish, so the comparison can be checked
-        alike, cmp = as_good_on_heldout(step_res, best, test), heldout_comparison(step_res, best, test)
-        if cfg.polish_nfev > 0 and not prev.get("named_jointly"):
-            prev = polish(tuple(named), prev, step)
-            refits["+".join(named)] = prev
-        prev["as_good_on_heldout"], prev["heldout_comparison"] = alike, cmp
+    # 6. forward selection (the rigid one, with the named effect's refit polished)
+    named, prev, refits, conditional = forward_select(
+        ranked, cands, judge, lambda res, c, p: bool(gap_present and supported(res, c, p)), strength,
+        lambda p: not (p["heldout_after_px"] - floor_mean <= cfg.min_excess * floor_mean), run_screen, cfg, note,
+        test, CLOTH_EFFECTS, polish if cfg.polish_nfev > 0 else None)
     joint: dict[str, dict] = {}
     if not named and gap_present and cfg.pairs and cfg.joint_pairs:
         named, prev, joint = joint_pair_search(ranked[: cfg.top_k], refits, lambda effs: judge(effs),

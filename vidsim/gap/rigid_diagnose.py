@@ -724,6 +724,84 @@ def joint_pair_search(pool: list[str], singles: dict[str, dict], judge, supporte
     return best, prev, out
 
 
+def forward_select(ranked: list[str], cands: list[str], judge, supported, strength, gap_left, run_screen, cfg, note,
+                   heldout: np.ndarray, library=None, polish=None
+                   ) -> tuple[list[str], dict | None, dict[str, dict], dict[str, dict]]:
+    """Forward selection (both domains): refit the ``cfg.top_k`` screened candidates one at a time
+    and name the supported one that leaves the least held-out gap (:func:`pick_supported`); then,
+    with ``cfg.pairs`` and while a gap beyond the floor remains, screen the other candidates again
+    with the named effect in the model (a conditional score test) and refit the ``top_k`` of them
+    together with it, judged by the same rule on what the named one left.
+
+    Args:
+        ranked: the candidates, best screened first.
+        cands: every candidate (the conditional screen takes those not named and no stated alias
+            of a named one, in this order).
+        judge: ``judge(effects, start)``: the refit of the base with ``effects`` from ``start``
+            (None: the base refit), a result dictionary.
+        supported: ``supported(res, added, prev)``: the refit's ``"supported"`` entry (the whole
+            rule, a gap present included), ``prev`` the refit of the effects named before
+            ``added`` (None: the base model).
+        strength: ``strength(res, added, prev)``: its ``"closure_of_remaining"`` entry.
+        gap_left: ``gap_left(prev)``: whether what the named effects left is worth a second step.
+        run_screen: ``run_screen(current, theta_cur, names, blur_threshold)``: the ranked
+            conditional screen of ``names`` at ``theta_cur`` with ``current`` in the model.
+        cfg: reads ``top_k`` and ``pairs``.
+        note: ``note(text)`` after each conditional screen and refit.
+        heldout: the held-out frames the named refit is compared on with the other supported
+            candidates of its step (:func:`as_good_on_heldout`, :func:`heldout_comparison`,
+            stored in the named refit under those names).
+        library: the effect specifications (aliases), :data:`RIGID_EFFECTS` by default.
+        polish: optional ``polish(effects, res, prev)``: a named refit continued from where it
+            stopped, which replaces it (not one named jointly); the comparison is made before it
+            (the other candidates had the same budget).
+
+    Returns:
+        (the named effects; the refit that named the last of them, or None; every refit by its
+        effects joined with "+"; the conditional screens by ``"after a"``).
+    """
+    lib = RIGID_EFFECTS if library is None else library
+    refits: dict[str, dict] = {}
+    conditional: dict[str, dict] = {}
+    named: list[str] = []
+    prev: dict | None = None
+    for step in range(2 if cfg.pairs else 1):
+        if step == 0:
+            pool = ranked
+        else:
+            rest = [c for c in cands if c not in named
+                    and not any(c in lib[k].alias or k in lib[c].alias for k in named)]
+            if not rest or not gap_left(prev):
+                break
+            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest,
+                             prev["params"].get("motion_blur", {}).get("segmentation_threshold"))
+            pool = sorted(rest, key=lambda c: scr[c]["rank"])
+            note("conditional screen")
+            conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}
+        step_res: dict[str, dict] = {}
+        for c in pool[: cfg.top_k]:
+            effs = tuple(named) + (c,)
+            res = judge(effs, None if prev is None else np.asarray(prev["theta"]))
+            res["supported"] = supported(res, c, prev)
+            res["closure_of_remaining"] = strength(res, c, prev)
+            refits["+".join(effs)] = step_res[c] = res
+            note(f"refit {'+'.join(effs)}")
+        best = pick_supported(step_res)
+        if best is None:
+            break
+        before = prev
+        named.append(best)
+        prev = refits["+".join(named)]
+        # compared before any polish (the other candidates had the same budget); a polish keeps the
+        # unpolished per-frame gaps, so the comparison can be checked
+        alike, cmp = as_good_on_heldout(step_res, best, heldout), heldout_comparison(step_res, best, heldout)
+        if polish is not None and not prev.get("named_jointly"):
+            prev = polish(tuple(named), prev, before)
+            refits["+".join(named)] = prev
+        prev["as_good_on_heldout"], prev["heldout_comparison"] = alike, cmp
+    return named, prev, refits, conditional
+
+
 def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, fit: dict,
                    cfg: DiagnoseConfig | None = None, progress=None) -> RigidDiagnosis:
     """Diagnose the gap between a rigid fit and its footage (blind: no truth).
@@ -895,7 +973,7 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
                                           cfg.min_closure))
         return bool((ho0 - res["heldout_after_px"]) / (ho0 - floor_mean) >= cfg.min_closure)
 
-    def strength(c: str, res: dict, prev: dict | None) -> float | None:
+    def strength(res: dict, c: str, prev: dict | None) -> float | None:
         """How much ``c`` closes of what the model before it left (held-out; training for jitter);
         None when that left no held-out excess above the naming margin (a fraction of nothing:
         dividing by a vanishing excess had reported closures of +-1e7)."""
@@ -914,39 +992,9 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     # that closes most of the held-out excess; then, while a gap beyond the floor remains, screen
     # again with the named effects in the model (a conditional score test) and refit the top_k
     # of the rest together with them, judged by the same rule on what the named ones left
-    refits: dict[str, dict] = {}
-    conditional: dict[str, dict] = {}
-    named: list[str] = []
-    prev: dict | None = None
-    steps = 2 if cfg.pairs else 1
-    for step in range(steps):
-        if step == 0:
-            pool = ranked
-        else:
-            rest = [c for c in cands if c not in named
-                    and not any(c in RIGID_EFFECTS[k].alias or k in RIGID_EFFECTS[c].alias for k in named)]
-            if not rest or not supported_gap(prev):
-                break
-            scr = run_screen(tuple(named), np.asarray(prev["theta"]), rest,
-                             prev["params"].get("motion_blur", {}).get("segmentation_threshold"))
-            pool = sorted(rest, key=lambda c: scr[c]["rank"])
-            note("conditional screen")
-            conditional[f"after {'+'.join(named)}"] = {c: scr[c] for c in pool}
-        step_res: dict[str, dict] = {}
-        for c in pool[: cfg.top_k]:
-            effs = tuple(named) + (c,)
-            res = judge(effs, None if prev is None else np.asarray(prev["theta"]))
-            res["supported"] = gap_present and supported(res, c, prev)
-            res["closure_of_remaining"] = strength(c, res, prev)
-            refits["+".join(effs)] = step_res[c] = res
-            note(f"refit {'+'.join(effs)}")
-        best = pick_supported(step_res)
-        if best is None:
-            break
-        named.append(best)
-        prev = refits["+".join(named)]
-        prev["as_good_on_heldout"] = as_good_on_heldout(step_res, best, test)
-        prev["heldout_comparison"] = heldout_comparison(step_res, best, test)
+    named, prev, refits, conditional = forward_select(
+        ranked, cands, judge, lambda res, c, p: gap_present and supported(res, c, p), strength, supported_gap,
+        run_screen, cfg, note, test)
     joint: dict[str, dict] = {}
     if not named and gap_present and cfg.pairs and cfg.joint_pairs:
         named, prev, joint = joint_pair_search(ranked[: cfg.top_k], refits, judge, supported, cfg, note, floor_mean)
