@@ -988,10 +988,11 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     def supported_gap(prev: dict) -> bool:
         return prev["heldout_after_px"] - floor_mean > cfg.min_excess * floor_mean
 
-    # 5. forward selection: refit the top_k screened candidates one at a time and name the one
-    # that closes most of the held-out excess; then, while a gap beyond the floor remains, screen
-    # again with the named effects in the model (a conditional score test) and refit the top_k
-    # of the rest together with them, judged by the same rule on what the named ones left
+    # 5. forward selection (forward_select, shared with the cloth diagnosis): refit the top_k
+    # screened candidates one at a time and name the supported one that leaves the least held-out
+    # gap; then, while a gap beyond the floor remains, screen again with the named effects in the
+    # model (a conditional score test) and refit the top_k of the rest together with them, judged
+    # by the same rule on what the named ones left
     named, prev, refits, conditional = forward_select(
         ranked, cands, judge, lambda res, c, p: gap_present and supported(res, c, p), strength, supported_gap,
         run_screen, cfg, note, test)
