@@ -74,8 +74,13 @@ def test_twin_select_profile_score_and_method_comparison(study):
         _run("vidsim.cli.cloth_select", *base, f"paths.out={pol}", fits, f"cloth.select.footage=[{fp['exp1']},{fp['exp2']}]",
              "cloth.select.polish_budget=6")
         pdoc = yaml.safe_load((pol / "params.yaml").read_text())
+        logs = {f.name: f.read_bytes() for f in sorted(pol.glob("select_evals_*.jsonl"))}
         if _ == 0:
-            first = pdoc
+            first, first_logs = pdoc, logs
+    # the candidates' cross-trial scores are logged per trial and replayed by the rerun: the same
+    # logs, nothing appended or moved aside
+    assert sorted(logs) == ["select_evals_0.jsonl", "select_evals_1.jsonl"] and logs == first_logs
+    assert all(len(b.splitlines()) >= 2 for b in logs.values())  # the header and one record per candidate
     sel0 = yaml.safe_load((res / "cloth" / "select" / "twin" / "params.yaml").read_text())
     assert pdoc["selected"]["total"] == sel0["total"] and pdoc["selected"]["params"] == sel0["params"]
     assert pdoc["polish"]["total_after"] <= pdoc["polish"]["total_before"] == sel0["total"]

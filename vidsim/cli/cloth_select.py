@@ -10,7 +10,8 @@ and ``table.csv`` (one row per candidate: origin, parameters, E1, E2, E1 + E2, c
 
 With ``cloth.select.polish_budget`` > 0 the chosen set is then polished on E1 + E2 (one annealing
 over all trials at once, started at the selection; evaluations in ``polish_evals.jsonl``, resumed
-after a kill); ``params.yaml`` then holds the polished set when it lowers E1 + E2, with the
+after a kill; the candidates' scores are logged in ``select_evals_<k>.jsonl``, one per trial, and
+resumed the same way); ``params.yaml`` then holds the polished set when it lowers E1 + E2, with the
 selection under ``selected`` and the polish's record under ``polish`` (``table.csv`` gets a
 ``polish`` row). ``params.yaml``'s ``trial_simulations`` says how many trial simulations the stage
 made: ``selection`` (every candidate on every trial, its own included: simulated afresh) and
@@ -25,7 +26,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_dict
+from vidsim.cli.cloth_common import ClothStageError, LoggedScores, load_trial, make_objective, params_dict
 from vidsim.cloth import ESTIMATED_NAMES
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.log.progress import Progress
@@ -67,15 +68,21 @@ def run(cfg: DictConfig) -> None:
                                       f"estimated other parameters than cloth.fit.estimate = {list(names)}?)")
             cands.append((f"{trials[i].name}#{k}", theta))
     prog = Progress(len(cands) * len(trials), "select_cloth evaluations", enabled=cfg.log.progress)
+    # each trial's scores logged as they finish (select_evals_<k>.jsonl), so a killed stage resumes
+    # without simulating them again; ClothObjective.evaluate(theta) is evaluate_params of these params
+    logs = [LoggedScores(obj, out / f"select_evals_{k}.jsonl") for k, obj in enumerate(objs)]
     rows = []
-    for label, theta in cands:
-        errs = []
-        for tr, obj in zip(trials, objs):
-            th = np.array([float(theta[n]) for n in obj.space.names])
-            r = obj.evaluate(th)
-            errs.append(float(r.score))
-            prog.update(note=label)
-        rows.append((label, theta, errs))
+    try:
+        for label, theta in cands:
+            errs = []
+            for tr, obj, log in zip(trials, objs, logs):
+                th = np.array([float(theta[n]) for n in obj.space.names])
+                errs.append(float(log.evaluate_params(obj.params(th, tr.density)).score))
+                prog.update(note=label)
+            rows.append((label, theta, errs))
+    finally:
+        for log in logs:
+            log.close()
     tot = [sum(e) for _, _, e in rows]
     best = int(np.argmin(tot))
     label, theta, errs = rows[best]
