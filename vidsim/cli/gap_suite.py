@@ -35,7 +35,7 @@ from vidsim.cli._app import stage_app
 from vidsim.cli.gap_common import diagnose_config, log_diagnosis, plot_diagnosis
 from vidsim.errors import ConfigError
 from vidsim.gap.rigid_model import GapError
-from vidsim.io.atomic import replace_dir, restore_nonfinite, to_json, write_json, write_text
+from vidsim.io.atomic import atomic_path, replace_dir, restore_nonfinite, to_json, write_json, write_text
 from vidsim.log import make_logger, merge_recordings
 from vidsim.log.progress import Progress
 from vidsim.report.figures import save_figure
@@ -89,7 +89,8 @@ def finished_or_reused(folder: Path, prev: Path, name: str, key: dict,
         done = finished_case(prev, name, key, companions)
         if done is not None:
             for ext in companions + (".json",):  # the json last: it marks the case as finished
-                shutil.copy2(prev / f"{name}{ext}", folder / f"{name}{ext}")
+                with atomic_path(folder / f"{name}{ext}") as tmp:
+                    shutil.copyfile(prev / f"{name}{ext}", tmp)
     return done
 
 

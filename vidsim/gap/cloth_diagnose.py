@@ -811,7 +811,10 @@ def refit(prob: Problem, theta0: np.ndarray, max_nfev: int = 8, free: np.ndarray
     J = sol.jac
     n, p = J.shape
     groups = prob.row_frames()
-    cov_x = frame_sandwich_cov(J, np.asarray(sol.fun, float), groups if len(groups) == n else None)
+    try:  # as the rigid refit: an SVD that does not converge leaves the intervals unknown, not the run
+        cov_x = frame_sandwich_cov(J, np.asarray(sol.fun, float), groups if len(groups) == n else None)
+    except np.linalg.LinAlgError:
+        cov_x = np.full((p, p), np.nan)
     cov = np.full((m.n_params, m.n_params), np.nan)
     cov[np.ix_(idx, idx)] = cov_x * np.outer(xs, xs)
     return theta, {"cost": float(2 * sol.cost), "nfev": int(sol.nfev), "cov": cov}
