@@ -73,6 +73,11 @@ def headline(scores: dict[str, dict]) -> dict:
         "closure_not_measured": sum(c is None for c in clos_all),
         "closure_note": "time_jitter's closure is of the training excess (its held-out times are fitted per frame)",
         "strength_within_30pct": f"{sum(r <= 0.3 for r in rec)}/{len(rec)}",
+        # single cases whose true strength is not in the count above (said since 6 Dec 2026)
+        "strength_not_scored": sum(s["label"] not in (s.get("recovery") or {}) for s in single),
+        "strength_note": "a single case's strength is not scored when its effect was never refitted, or has no true "
+                         "value in the candidate's form (rigid angular_drag and quadratic_drag: MuJoCo's drag laws "
+                         "differ in form from the candidates', e.g. its angular drag grows with the spin)",
     }
 
 

@@ -370,7 +370,13 @@ def true_strengths(truth: dict, scene: ClothSceneConfig) -> dict[str, list[float
         out["air_drag"] = [float(truth["params"][k]) - float(getattr(fixed, k)) for k in DRAG_NAMES
                            if k not in scene.estimate]
     if "grip_slip" in e:
-        out["grip_slip"] = [float(e["grip_slip"].get("drop", 0.0))] * 2
+        # the candidate's parameter is the slip from the first compared frame to the last (a linear
+        # ramp); reality's is drop * smoothstep(t / ramp_s) from t = 0: their difference over the
+        # clip (drop itself only while the clip lasts at least ramp_s; said since 6 Dec 2026)
+        gs = e["grip_slip"]
+        ramp = max(float(gs.get("ramp_s", 1.0)), 1e-6)
+        s = min(1.0, (scene.n_frames - 1) / scene.fps / ramp)
+        out["grip_slip"] = [float(gs.get("drop", 0.0)) * s * s * (3 - 2 * s)] * 2
     if "lens_k1" in e:
         out["lens_k1"] = [float(e["lens_k1"])]
     if "time_offset" in e:
@@ -398,12 +404,7 @@ def score_case(case: dict, diag: ClothDiagnosis, truth: dict, scene: ClothSceneC
     lab = case.get("label", "none")
     named = list(diag.named)
     first = named[0] if named else "none"
-    if not labels:
-        correct = not named
-    elif len(labels) == 1:
-        correct = first == labels[0] or first in CLOTH_EFFECTS[labels[0]].alias
-    else:
-        correct = all(x in named for x in labels)
+    correct = rigid_suite.named_correctly(case, labels, named, CLOTH_EFFECTS)
     out: dict[str, Any] = {"label": lab if isinstance(lab, str) else "+".join(lab), "named": named,
                            "named_first": first, "correct": bool(correct), "verdict": diag.verdict,
                            "gap_present": bool(diag.extra.get("gap_present", False)),

@@ -306,7 +306,7 @@ def make_throw(seed: int, cfg: RigidRealityConfig | None = None, effects: RigidE
             rasteriser, for quick tests of the estimator on exact silhouettes (refused with an exposure
             or a rolling shutter, which only rendering makes). The returned truth masks are the
             instantaneous silhouettes at each capture time (row 0's for a rolling shutter, the
-            exposure's end for a blur), so a segmentation IoU scored against them on blurred or
+            exposure's centre for a blur), so a segmentation IoU scored against them on blurred or
             skewed footage includes the effect's own smear.
 
     Returns:

@@ -301,6 +301,20 @@ def test_a_trial_too_stiff_for_the_fixed_step_with_a_bath_is_a_failed_run(setup,
     assert not ok and np.all(np.isnan(P))
 
 
+def test_grip_slip_truth_is_the_slip_over_the_compared_clip():
+    """The candidate's grip slip is the drop from the first compared frame to the last; reality's
+    is drop * smoothstep(t / ramp_s). They agree on `drop` only while the clip lasts at least
+    ramp_s (the default scene: 15 frames at 30 fps = 0.5 s = ramp_s); a longer ramp leaves part of
+    the drop after the clip (review of 6 Dec 2026: it was scored against the whole drop)."""
+    from vidsim.gap.cloth_suite import ClothSceneConfig, true_strengths
+
+    scene = ClothSceneConfig()
+    case = {"kind": "twin", "effects": {"grip_slip": {"drop": 0.02, "ramp_s": 0.5}}}
+    assert true_strengths(case, scene)["grip_slip"] == pytest.approx([0.02, 0.02], rel=1e-12)
+    case["effects"]["grip_slip"]["ramp_s"] = 1.0  # the clip ends at half the ramp: smoothstep(0.5) = 0.5
+    assert true_strengths(case, scene)["grip_slip"] == pytest.approx([0.01, 0.01], rel=1e-12)
+
+
 def test_blur_truth_is_the_libraries_b_with_the_twins_second_moment(setup, params0):
     """The library's b blurs over 3 equal renders spread over sqrt(b) (time variance b/6); the twin
     films n equal samples over an exposure E, variance E^2 (n+1)/(12(n-1)). The strength the library

@@ -303,6 +303,10 @@ def test_the_suite_headline_counts_decided_names_apart():
     h = headline(scores)
     assert h["named_first_correct"] == "3/4"
     assert h["named_first_correct_decided"] == "1/4"
+    # no single case here has a recovered strength: all four are said to be unscored
+    assert h["strength_within_30pct"] == "0/0" and h["strength_not_scored"] == 4
+    scores["a"]["recovery"] = {"magnus": {"rel_error": 0.1}}
+    assert headline(scores)["strength_within_30pct"] == "1/1" and headline(scores)["strength_not_scored"] == 3
 
 
 def test_the_report_says_which_names_are_undecided():

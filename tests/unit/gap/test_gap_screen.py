@@ -220,3 +220,29 @@ def test_the_diagnosis_models_the_fits_own_gravity(monkeypatch):
     assert seen["gravity"] == 3.71
     with pytest.raises(rigid_diagnose.GapError, match="gravity_magnitude"):
         rigid_diagnose.diagnose_rigid(masks, np.arange(12) / 30.0, cam, t_object()[0], {**fit, "gravity_magnitude": 0})
+
+
+def test_verdict_allows_effects_the_reality_holds_throughout_but_nothing_else():
+    """A case's verdict (both domains): the withheld effect or a stated alias first; every effect of
+    a combination in any order; nothing for none/unexplained, except the case's `allowed` effects
+    (the rigid gust's throw has the drag case's drag throughout: naming it is not wrong, review of
+    6 Dec 2026). A bad `allowed` entry is refused when the case's labels are read, before a run."""
+    from vidsim.gap.cloth_model import CLOTH_EFFECTS
+    from vidsim.gap.rigid_model import RIGID_EFFECTS
+    from vidsim.gap.suite import case_labels, named_correctly
+
+    def ok(case, named, lib=RIGID_EFFECTS):
+        return named_correctly(case, case_labels(case, lib), named, lib)
+
+    gust = {"label": "unexplained", "allowed": ["quadratic_drag"]}
+    assert ok(gust, []) and ok(gust, ["quadratic_drag"])
+    assert not ok(gust, ["wind"]) and not ok(gust, ["quadratic_drag", "wind"])
+    assert not ok({"label": "unexplained"}, ["quadratic_drag"])  # without `allowed`, as before
+    assert ok({"label": "none"}, []) and not ok({"label": "none"}, ["lens_k1"])
+    assert ok({"label": "magnus"}, ["magnus", "lens_k1"]) and not ok({"label": "magnus"}, ["lens_k1", "magnus"])
+    assert ok({"label": ["lens_k1", "com_offset"]}, ["com_offset", "lens_k1"])
+    assert not ok({"label": ["lens_k1", "com_offset"]}, ["com_offset"])
+    assert ok({"label": "grip_slip"}, ["grip_slip"], CLOTH_EFFECTS)
+    for bad in ("quadratic_drag", ["no_such_effect"], [3]):
+        with pytest.raises(GapError, match="allowed"):
+            case_labels({"label": "unexplained", "allowed": bad})
