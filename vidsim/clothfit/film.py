@@ -7,8 +7,11 @@ flat faces with its own rasteriser). Then optical blur and Gaussian sensor noise
 (:func:`vidsim.reality.imaging.sensor`). The clip starts with ``n_background`` frames of the
 empty scene (a dark studio backdrop), from which the segmentation learns the background.
 
-Imaging effects (off by default): motion blur (the exposure averages ``motion_blur`` renders
-at positions interpolated linearly between consecutive frames), a radial lens term ``lens_k1``
+Imaging effects (off by default): motion blur (the exposure, centred on the frame's time as in
+the rigid reality and in the gap diagnosis's candidate, averages ``motion_blur`` renders at
+positions interpolated linearly between consecutive frames, extrapolated from the nearest two at
+the clip's ends; until 6 Dec 2026 the exposure ended at the frame time, so the blurred footage
+also carried half the exposure as a time offset), a radial lens term ``lens_k1``
 that the calibration never saw, and a projector rotated by ``projector_misalign_deg`` after
 calibration.
 
@@ -127,9 +130,15 @@ def film_cloth(
         for k in range(V.shape[0]):
             acc = np.zeros((camera.height, camera.width, 3), np.float32)
             for s in range(sub):
-                # exposure ends at the frame time: sample back towards the previous frame
-                w = 0.0 if sub == 1 else settings.exposure * (1.0 - s / (sub - 1))
-                Vk = V[k] if k == 0 else (1 - w) * V[k] + w * V[k - 1]
+                # exposure centred on the frame time: w frame intervals away from it, -E/2 .. +E/2,
+                # towards the neighbouring frame on that side (the other side's at the clip's ends)
+                w = 0.0 if sub == 1 else settings.exposure * (s / (sub - 1) - 0.5)
+                if V.shape[0] < 2 or w == 0.0:
+                    Vk = V[k]
+                elif (w < 0 and k > 0) or k == V.shape[0] - 1:
+                    Vk = V[k] + w * (V[k] - V[k - 1])
+                else:
+                    Vk = V[k] + w * (V[k + 1] - V[k])
                 img = r.render([MeshItem(Vk, faces, color=colour, smooth=True, name="cloth")], camera,
                                projector=projector).color
                 acc += img.astype(np.float32)
