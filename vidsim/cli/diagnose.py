@@ -11,6 +11,7 @@ screen, where: per phase / part / region), ``diagnosis.png`` and ``diagnosis.rrd
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 from omegaconf import DictConfig
@@ -77,12 +78,18 @@ def run(cfg: DictConfig) -> None:
         raise DiagnoseError(f"{cfg.gap.paths.masks}: empty silhouette in every frame: nothing to diagnose")
     dcfg = diagnose_config(cfg.gap.diagnose)
     prog = Progress(4 + dcfg.top_k + int(dcfg.pairs), "diagnose steps", enabled=cfg.log.progress)
+    # each finished step (base refit, floor, screens, refits) is kept here until the report is
+    # written: a killed stage resumes after its last finished step
+    out = Path(cfg.paths.out)
+    ckpt = out.with_name(f".{out.name}.steps")
     try:
-        d = diagnose_rigid(masks, times, cam, body, fit, dcfg, progress=lambda s: prog.update(note=s))
+        d = diagnose_rigid(masks, times, cam, body, fit, dcfg, progress=lambda s: prog.update(note=s),
+                           checkpoint=ckpt)
     except GapError as e:
         raise DiagnoseError(f"{cfg.gap.paths.fit}: {e}") from e
     inputs = {"footage": str(fo), "masks": str(cfg.gap.paths.masks), "fit": str(cfg.gap.paths.fit)}
-    write_diagnosis(d, Path(cfg.paths.out), inputs, masks, "diagnose", fo.name, cfg.log.rerun)
+    write_diagnosis(d, out, inputs, masks, "diagnose", fo.name, cfg.log.rerun)
+    shutil.rmtree(ckpt, ignore_errors=True)
 
 
 main = stage_app("diagnose", run)

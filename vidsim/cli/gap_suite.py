@@ -23,6 +23,7 @@ suite scores exactly as an uninterrupted one.
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -210,7 +211,8 @@ def run(cfg: DictConfig) -> None:
             prog.update(note=f"{n}: kept (finished earlier with the same settings)")
             continue
         try:
-            d, s, masks, _ = run_case(cases[n], dcfg, scene)
+            # the diagnosis's finished steps: a kill mid-case resumes within the case
+            d, s, masks, _ = run_case(cases[n], dcfg, scene, checkpoint=tmp / "steps" / n)
         except CaseFailed as e:  # a run-time failure of this case: a failed score, the suite goes on
             s = failed_score(cases[n], str(e))
             scores[n] = s
@@ -233,7 +235,9 @@ def run(cfg: DictConfig) -> None:
         # the json last: its presence (with the same key) marks the case as finished
         write_json(tmp / "cases" / f"{n}.json", {"key": key, "case": cases[n], "score": s,
                                                  "diagnosis": d.to_dict()}, CASE_NONFINITE)
+        shutil.rmtree(tmp / "steps" / n, ignore_errors=True)
         prog.update(note=f"{n}: named {s['named'] or 'nothing'} ({'ok' if s['correct'] else 'WRONG'})")
+    shutil.rmtree(tmp / "steps", ignore_errors=True)
     if cfg.log.rerun:
         merge_recordings([tmp / "cases" / f"{n}.rrd" for n in names], tmp / "suite.rrd")
     else:

@@ -41,6 +41,7 @@ interest around the body, at a reduced image scale; the *gap* is the mean per fr
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -48,7 +49,9 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
+import vidsim
 from vidsim.gap.rigid_model import RIGID_EFFECTS, GapError, RigidGapModel
+from vidsim.optim.cache import StepMemo, fingerprint
 from vidsim.rigid.body import BoxBody
 from vidsim.rigid.dynamics import G_EARTH, quat_exp, quat_mul
 from vidsim.rigid.fit import visible_frames
@@ -803,7 +806,8 @@ def forward_select(ranked: list[str], cands: list[str], judge, supported, streng
 
 
 def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, body: BoxBody, fit: dict,
-                   cfg: DiagnoseConfig | None = None, progress=None) -> RigidDiagnosis:
+                   cfg: DiagnoseConfig | None = None, progress=None,
+                   checkpoint: str | os.PathLike | None = None) -> RigidDiagnosis:
     """Diagnose the gap between a rigid fit and its footage (blind: no truth).
 
     Args:
@@ -814,6 +818,10 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         fit: the fit's summary (``position, quaternion, velocity, omega_world, tilt, roll, t0``).
         cfg: settings.
         progress: optional callable ``progress(note)`` called after each step.
+        checkpoint: a folder where each finished step (base refit, noise floor, screens, each
+            candidate's refit) is kept (:class:`vidsim.optim.cache.StepMemo`, keyed by a
+            fingerprint of the inputs, the settings and the source): a killed diagnosis rerun with
+            the same folder replays its finished steps, with the same result. None: no checkpoint.
 
     Returns:
         :class:`RigidDiagnosis`.
@@ -860,17 +868,25 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
     def problem(effects: tuple[str, ...], fr: np.ndarray) -> Problem:
         return Problem(RigidGapModel(body, cam, ft, t0, qb, effects, cfg.scale, cfg.ramp, hmax, g_fit), obs, roi, fr)
 
+    # every costly step below is a pure function of the inputs: kept as it finishes, replayed on resume
+    memo = StepMemo(checkpoint, fingerprint("rigid diagnosis", masks, times, cam, body, fit, cfg,
+                                            vidsim.SOURCE_DIGEST) if checkpoint is not None else "")
     n_renders = 0
     # 2. base refit on training frames
     pb = problem((), train)
-    theta_b, info_b = refit(pb, p0, cfg.max_nfev)
-    n_renders += pb.n_evals
+
+    def base_refit():
+        th, _ = refit(pb, p0, cfg.max_nfev)
+        return th, pb.n_evals, pb.gap_per_frame(th, np.arange(T))
+
+    theta_b, n_base, gap_all = memo("base", (), base_refit)
+    n_renders += n_base
     note("base refit")
-    gap_all = pb.gap_per_frame(theta_b, np.arange(T))
     before = float(gap_all[test].mean())
     # 3. floor
-    floor = _free_pose_gap(base, obs, roi, theta_b, test)
-    floor_train = _free_pose_gap(base, obs, roi, theta_b, train[:: max(1, len(train) // 8)])
+    floor, floor_train = memo("floor", (), lambda: (
+        _free_pose_gap(base, obs, roi, theta_b, test),
+        _free_pose_gap(base, obs, roi, theta_b, train[:: max(1, len(train) // 8)])))
     note("noise floor")
     # 4. screen: score test on all frames at the base refit (interleaved training frames make it
     # nearly the all-frame optimum; the base parameters are projected out to first order)
@@ -885,19 +901,25 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         parameters are projected out with the base's), all frames, ranked best first
         (``blur_threshold``: the segmentation threshold ``theta_cur`` was fitted with)."""
         nonlocal n_renders
-        pall = problem(tuple(current) + tuple(names), allf)
-        if blur_threshold is not None:
-            pall.model.blur_threshold = blur_threshold
-        theta_ext = np.r_[theta_cur, np.zeros(pall.model.n_params - len(theta_cur))]
-        Jall = pall.jacobian(theta_ext) * pall.model.x_scale()
-        r = pall.residual(theta_ext)
-        k_base = len(theta_cur)
-        blocks = {c: Jall[:, pall.model.slices[c]] for c in names}
-        one_sided = {c: RIGID_EFFECTS[c].lower is not None for c in names}
-        if "time_jitter" in blocks:
-            blocks["placebo_jitter"] = pall.placebo_jacobian(theta_ext) * RIGID_EFFECTS["time_jitter"].scale
-        n_renders += pall.n_evals
-        return rank_screen(score_screen(Jall[:, :k_base], blocks, r, one_sided), names)
+
+        def compute():
+            pall = problem(tuple(current) + tuple(names), allf)
+            if blur_threshold is not None:
+                pall.model.blur_threshold = blur_threshold
+            theta_ext = np.r_[theta_cur, np.zeros(pall.model.n_params - len(theta_cur))]
+            Jall = pall.jacobian(theta_ext) * pall.model.x_scale()
+            r = pall.residual(theta_ext)
+            k_base = len(theta_cur)
+            blocks = {c: Jall[:, pall.model.slices[c]] for c in names}
+            one_sided = {c: RIGID_EFFECTS[c].lower is not None for c in names}
+            if "time_jitter" in blocks:
+                blocks["placebo_jitter"] = pall.placebo_jacobian(theta_ext) * RIGID_EFFECTS["time_jitter"].scale
+            return rank_screen(score_screen(Jall[:, :k_base], blocks, r, one_sided), names), pall.n_evals
+
+        ranked_screen, n = memo("screen", (list(current), np.asarray(theta_cur, float), list(names), blur_threshold),
+                                compute)
+        n_renders += n
+        return ranked_screen
 
     screen = run_screen((), theta_b, cands)
     ranked = sorted(cands, key=lambda c: screen[c]["rank"])
@@ -910,11 +932,15 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
         """Refit the base with ``effects`` on the training frames (from ``start``: theta_b and
         zeros by default); held-out gap after, closures, parameters and intervals."""
         nonlocal n_renders
-        pe = problem(effects, train)
         th0 = theta_b if start is None else start
+        res, n = memo("judge", (list(effects), np.asarray(th0, float)), lambda: _judge(effects, th0))
+        n_renders += n
+        return res
+
+    def _judge(effects: tuple[str, ...], th0: np.ndarray) -> tuple[dict, int]:
+        pe = problem(effects, train)
         th0 = np.r_[th0, np.zeros(pe.model.n_params - len(th0))]
         th, info = blur_threshold_refit(pe, th0, lambda p, t: refit(p, t, cfg.max_nfev), cfg.blur_thresholds)
-        n_renders += pe.n_evals
         g = pe.gap_per_frame(th, np.arange(T))
         if "time_jitter" in effects:
             # the model claims every frame its own time error, and a held-out frame's is not in
@@ -950,7 +976,7 @@ def diagnose_rigid(masks: np.ndarray, times: np.ndarray, cam: PinholeCamera, bod
                                     "units": RIGID_EFFECTS[e].units}
         if "motion_blur" in effects:
             res["params"]["motion_blur"]["segmentation_threshold"] = info["blur_threshold"]
-        return res
+        return res, pe.n_evals
 
     def supported(res: dict, added: str, prev: dict | None) -> bool:
         """The named-effect rule, relative to the model before ``added`` was added (``prev``:

@@ -269,8 +269,9 @@ def failed_score(case: dict, reason: str) -> dict:
 
 
 def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidRealityConfig | None = None,
-             progress=None) -> tuple[RigidDiagnosis, dict, np.ndarray, Any]:
+             progress=None, checkpoint=None) -> tuple[RigidDiagnosis, dict, np.ndarray, Any]:
     """Film, fit (single start from the project's perturbed-guess protocol), diagnose, score.
+    ``checkpoint``: the diagnosis's folder of finished steps (see :func:`diagnose_rigid`; None: none).
 
     Returns:
         (diagnosis, score, masks, throw).
@@ -289,7 +290,7 @@ def run_case(case: dict, dcfg: DiagnoseConfig | None = None, scene: RigidReality
     if not np.all(np.isfinite(res.states)):
         raise CaseFailed(f"the single-start fit diverged (best objective {res.history[-1] if res.history else float('nan'):.3g})")
     try:
-        diag = diagnose_rigid(masks, th.times, th.camera, body, res.summary(), dcfg, progress)
+        diag = diagnose_rigid(masks, th.times, th.camera, body, res.summary(), dcfg, progress, checkpoint=checkpoint)
     except GapError as e:
         if str(e).startswith("fit:"):  # the fitted throw cannot be diagnosed (diverges, behind the camera)
             raise CaseFailed(str(e)) from e

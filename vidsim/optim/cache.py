@@ -272,3 +272,51 @@ def keep_only(path: str | os.PathLike, keys: set[str] | list[str]) -> Path | Non
     write_text(p, "\n".join(header + keep) + "\n")
     return aside
 
+
+
+class StepMemo:
+    """Checkpoint of a deterministic multi-step computation (a diagnosis): each finished step's
+    result kept in its own file, keyed by a fingerprint of everything it depends on.
+
+    ``memo(name, args, compute)`` returns the result a killed, earlier run stored for the same
+    ``context``, ``name`` and ``args``, or runs ``compute()`` and stores its result atomically
+    (``<folder>/<name>-<key>.pkl``) before returning it. A rerun with the same folder therefore
+    replays every finished step and computes the rest: its result is the uninterrupted run's bit
+    for bit. A file written for other inputs (another ``context``: footage, fit, settings, code)
+    has another key and is never read; an unreadable one is recomputed.
+
+    Args:
+        folder: where the steps are kept (None: keep nothing, compute every step).
+        context: what every step depends on, e.g. :func:`fingerprint` of the inputs and the
+            source digest.
+    """
+
+    def __init__(self, folder: str | os.PathLike | None, context: str) -> None:
+        self.folder = Path(folder) if folder is not None else None
+        self.context = context
+        self.n_replayed = 0
+        self.n_computed = 0
+
+    def __call__(self, name: str, args: Any, compute: Callable[[], Any]) -> Any:
+        import pickle
+
+        from vidsim.io.atomic import atomic_path
+
+        if self.folder is None:
+            self.n_computed += 1
+            return compute()
+        key = fingerprint(self.context, name, args)
+        path = self.folder / f"{name}-{key[:24]}.pkl"
+        if path.is_file():
+            try:
+                doc = pickle.loads(path.read_bytes())
+            except Exception:  # noqa: BLE001 -- unreadable (torn, another version's classes): recompute
+                doc = None
+            if isinstance(doc, dict) and doc.get("key") == key:
+                self.n_replayed += 1
+                return doc["value"]
+        value = compute()
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(pickle.dumps({"key": key, "value": value}))
+        self.n_computed += 1
+        return value

@@ -12,6 +12,7 @@ import pytest
 
 from vidsim.gap.rigid_diagnose import DiagnoseConfig, diagnose_rigid, score_screen
 from vidsim.gap.rigid_model import GapError, RigidGapModel
+from vidsim.io.atomic import to_json
 from vidsim.rigid.body import t_object
 from vidsim.rigid.dynamics import rot_to_quat
 from vidsim.video.camera import PinholeCamera, intrinsics
@@ -246,3 +247,41 @@ def test_verdict_allows_effects_the_reality_holds_throughout_but_nothing_else():
     for bad in ("quadratic_drag", ["no_such_effect"], [3]):
         with pytest.raises(GapError, match="allowed"):
             case_labels({"label": "unexplained", "allowed": bad})
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_killed_diagnosis_resumes_from_its_checkpoint_with_the_same_result(tmp_path, monkeypatch):
+    """A diagnosis killed after its screen, rerun with the same checkpoint folder, replays the base
+    refit, floor and screen (no refit of the base again) and ends with the uninterrupted result."""
+    from vidsim.gap import rigid_diagnose
+
+    masks, times, cam, body, fit = _throw({"com_offset": [0.015, 0.0, 0.0]})
+    d_whole = diagnose_rigid(masks, times, cam, body, fit, CFG)
+    whole = d_whole.to_dict()
+
+    def kill_after_screen(note):
+        if note == "screen":
+            raise _Killed
+
+    with pytest.raises(_Killed):
+        diagnose_rigid(masks, times, cam, body, fit, CFG, progress=kill_after_screen, checkpoint=tmp_path)
+    assert len(list(tmp_path.glob("*.pkl"))) == 3  # base, floor, screen
+
+    starts = []
+    real_refit = rigid_diagnose.refit
+    monkeypatch.setattr(rigid_diagnose, "refit", lambda prob, th0, *a, **k: starts.append(len(th0)) or
+                        real_refit(prob, th0, *a, **k))
+    d_resumed = diagnose_rigid(masks, times, cam, body, fit, CFG, checkpoint=tmp_path)
+    assert starts and min(starts) > 14, "the base (14 parameters) was refitted again"
+    resumed = d_resumed.to_dict()
+    whole.pop("seconds"), resumed.pop("seconds")
+    assert to_json(resumed) == to_json(whole)
+    assert np.array_equal(d_resumed.signed_heatmap, d_whole.signed_heatmap)
+    # inputs changed: nothing replayed (another key), the result is the new input's
+    other = dict(fit, position=[-0.79, 0.1, 2.2])
+    starts.clear()
+    diagnose_rigid(masks, times, cam, body, other, CFG, checkpoint=tmp_path)
+    assert 14 in starts

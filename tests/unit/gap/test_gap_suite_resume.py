@@ -42,7 +42,9 @@ def calls(monkeypatch):
     made: list[int] = []
     crash_at: dict[str, int | None] = {"seed": None}
 
-    def fake_run_case(case, dcfg, scene):
+    def fake_run_case(case, dcfg, scene, checkpoint=None):
+        Path(checkpoint).mkdir(parents=True, exist_ok=True)  # a finished step of the case's diagnosis
+        (Path(checkpoint) / "base-0.pkl").write_bytes(b"step")
         if case["seed"] == crash_at["seed"]:
             raise RuntimeError("killed mid-suite")
         made.append(case["seed"])
@@ -63,10 +65,13 @@ def test_resume_keeps_finished_cases_and_reruns_on_a_changed_key(tmp_path, calls
     assert made == [201, 202] and not out.exists()
     assert sorted(p.name for p in (tmp_path / ".suite.part" / "cases").iterdir()) == [
         "null_a.json", "null_a.png", "null_a.rrd", "null_b.json", "null_b.png", "null_b.rrd"]
+    # the killed case's finished diagnosis steps are kept for the rerun; the finished cases' are gone
+    assert [p.name for p in (tmp_path / ".suite.part" / "steps").iterdir()] == ["lens_k1"]
 
     crash_at["seed"] = None
     stage.run(_cfg(out))
     assert made == [201, 202, 203]  # only the unfinished case ran
+    assert not (out / "steps").exists()
     summ = json.loads((out / "suite.json").read_text())
     assert summ["resumed_cases"] == ["null_a", "null_b"]
     assert summ["headline"]["null_cases_naming_nothing"] == "2/2"
@@ -182,7 +187,7 @@ def test_a_case_failing_at_run_time_is_a_failed_score_not_the_end_of_the_suite(t
     every rerun died at the same case and suite.json never came (resume audit, 5 Dec 2026)."""
     made, _ = calls
 
-    def failing(case, dcfg, scene):
+    def failing(case, dcfg, scene, checkpoint=None):
         if case["seed"] == 201:
             raise suite.CaseFailed("the single-start fit diverged")
         made.append(case["seed"])
@@ -222,7 +227,7 @@ def test_a_resumed_case_with_nonfinite_figures_scores_as_an_uninterrupted_run(tm
 
     crash = {"seed": None}
 
-    def fake_run_case(case, dcfg, scene):
+    def fake_run_case(case, dcfg, scene, checkpoint=None):
         if case["seed"] == crash["seed"]:
             raise RuntimeError("killed mid-suite")
         s = _score(case["label"])
