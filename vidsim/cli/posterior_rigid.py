@@ -8,8 +8,9 @@ Writes ``summary.csv`` (point estimate, 5/50/95 % and sd per parameter, angles i
 ``posterior.yaml`` (diagnostics: autocorrelation times, ``converged``, ESS, noise model,
 multimodality flag, correlations), ``corner.png``, ``correlation.png``, ``chain.npz`` (resumable:
 a killed run continues from its last checkpoint, and replays its start refit and noise calibration
-from ``.calibration.checkpoint/calibration.jsonl`` in the staging folder: :func:`calibration_log`,
-removed with whatever the log moved aside when the run finishes) and ``posterior.rrd`` (footage with the observed
+from ``.calibration.checkpoint/calibration.jsonl`` in the staging folder, or, killed during the
+calibration, the calibration's evaluations from ``calibration_points.jsonl`` beside it
+(:func:`calibration_log`; removed with whatever the logs moved aside when the run finishes) and ``posterior.rrd`` (footage with the observed
 silhouette and the fraction of posterior draws covering each pixel; per-frame mismatch at the mode
 as scalars). Never reads truth.
 """

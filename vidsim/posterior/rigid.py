@@ -46,6 +46,7 @@ by more than ``distinct_deg``, raise the ``multimodal`` flag.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -327,6 +328,30 @@ class NoiseModel:
                 "holdout_inflation": float(self.inflation)}
 
 
+class _PointLog:
+    """A :class:`FrameLoss` whose evaluations go through an :class:`~vidsim.optim.cache.EvalCache`
+    (keyed by the exact point; the per-frame mismatches logged, ``None`` for a failed simulation):
+    the checkpoint of :func:`calibrate_logged`'s designs. Every other attribute is the loss's."""
+
+    def __init__(self, loss: FrameLoss, log) -> None:
+        self._loss = loss
+        self._log = log
+
+    def __getattr__(self, name: str):
+        return getattr(self._loss, name)
+
+    def __call__(self, p: np.ndarray, q_base: np.ndarray | None = None) -> np.ndarray | None:
+        if q_base is not None:
+            return self._loss(p, q_base)
+
+        def fn(u: np.ndarray) -> tuple[float, dict]:
+            return 0.0, {"e": self._loss(u)}
+
+        _, info = self._log.evaluate(np.asarray(p, float), fn)
+        e = info.get("e")  # absent: a numerical fault, logged as a failure (a failed simulation)
+        return None if e is None else np.asarray(e, float)
+
+
 def calibrate_logged(masks: np.ndarray, loss: FrameLoss, p_fit: np.ndarray, noise: NoiseConfig,
                      disc: DiscrepancyConfig, seed: int, path: str | None = None, context: str | None = None
                      ) -> tuple[np.ndarray, NoiseModel]:
@@ -338,16 +363,26 @@ def calibrate_logged(masks: np.ndarray, loss: FrameLoss, p_fit: np.ndarray, nois
     whose ``context`` fingerprints every input (the caller's :func:`rigid_posterior` does): a
     resumed run (its chain killed while sampling) replays it instead of recomputing its
     ``n_design * (design_iters + 1)`` simulations, bit for bit (floats round-trip exactly through
-    the log); a log of other inputs is moved aside. A run killed during the calibration computes it
-    again.
+    the log); a log of other inputs is moved aside. While the calibration runs, each of its loss
+    evaluations is logged too (``<path stem>_points.jsonl`` beside ``path``, same context): a run
+    killed during the calibration replays the design points it had evaluated and computes only the
+    rest, with the same result (the designs are drawn from ``seed``, so the points recur exactly).
+    The discrepancy refit's own least-squares steps (with ``disc.effects``) are not logged.
     """
     from dataclasses import fields
 
     from vidsim.optim.cache import EvalCache
 
     def run(_u: np.ndarray) -> tuple[float, dict]:
-        p_start = refit_discrepancy(masks, loss, p_fit, disc) if disc.effects else p_fit
-        nm = calibrate_noise(loss, p_start, noise, np.random.default_rng(seed))
+        points = None if path is None else EvalCache(lambda x: None, Path(path).with_name(f"{Path(path).stem}_points.jsonl"),
+                                                     context)
+        ls = loss if points is None else _PointLog(loss, points)
+        try:
+            p_start = refit_discrepancy(masks, ls, p_fit, disc) if disc.effects else p_fit
+            nm = calibrate_noise(ls, p_start, noise, np.random.default_rng(seed))
+        finally:
+            if points is not None:
+                points.close()
         return 0.0, {"p_start": p_start, "noise": {f.name: getattr(nm, f.name) for f in fields(nm)}}
 
     u = np.asarray(p_fit, float)

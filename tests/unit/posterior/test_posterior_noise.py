@@ -196,6 +196,42 @@ def test_logged_calibration_is_replayed_bit_for_bit_and_recomputed_for_other_inp
     assert loss.n_evals > n and (tmp_path / "calibration.stale-1.jsonl").is_file()
 
 
+class _Killed(Exception):
+    pass
+
+
+def test_calibration_killed_midway_replays_its_evaluated_points(rng, tmp_path) -> None:
+    """A run killed during the noise calibration (after 250 of its evaluations) replays those 250 on
+    the rerun and simulates only the rest, ending with the uninterrupted run's model bit for bit."""
+    from dataclasses import fields
+
+    from vidsim.posterior.rigid import DiscrepancyConfig, calibrate_logged
+
+    loss = LinearFrames(rng, 200, 1.0)
+    masks = np.zeros((200, 2, 2), bool)
+    cfg = NoiseConfig(n_design=200, design_iters=1)
+    _, whole = calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7)
+    n_whole = loss.n_evals
+
+    class Dies(LinearFrames):
+        def __call__(self, p, q_base=None):
+            if self.n_evals == 250:
+                raise _Killed
+            return super().__call__(p, q_base)
+
+    dies = Dies(np.random.default_rng(0), 200, 1.0)
+    dies.A, dies.y = loss.A, loss.y
+    log = tmp_path / "calibration.jsonl"
+    with pytest.raises(_Killed):
+        calibrate_logged(masks, dies, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-a")
+    loss.n_evals = 0
+    _, resumed = calibrate_logged(masks, loss, np.zeros(N_PARAM), cfg, DiscrepancyConfig(), 7, str(log), "inputs-a")
+    assert loss.n_evals == n_whole - 250
+    for f in fields(whole):
+        a, b = getattr(whole, f.name), getattr(resumed, f.name)
+        assert np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b
+
+
 def test_posterior_rigid_output_holds_no_calibration_log(rng, tmp_path) -> None:
     """The stage's calibration log, and the stale copy it moves aside after a kill and an input
     change, stay in their checkpoint folder, which is removed before the staging folder becomes the
