@@ -29,5 +29,9 @@ class Progress:
             return
         self._last = now
         el = now - self.t0
+        if self.i > self.total:  # the total was an estimate (e.g. a diagnosis's optional steps): no time left to give
+            print(f"[{self.desc}] {self.i} (over the {self.total} estimated)  {el:6.1f}s elapsed  {note}",
+                  file=sys.stderr, flush=True)
+            return
         eta = el / self.i * (self.total - self.i) if self.i else float("nan")
         print(f"[{self.desc}] {self.i}/{self.total}  {el:6.1f}s elapsed  ~{eta:6.1f}s left  {note}", file=sys.stderr, flush=True)
