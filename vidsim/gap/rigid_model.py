@@ -4,7 +4,8 @@ The base model is :mod:`vidsim.rigid.dynamics` (torque-free Newton-Euler, gravit
 fitted) rendered by :mod:`vidsim.rigid.silhouette`. Each candidate of :data:`RIGID_EFFECTS` adds a
 small block of parameters; with all blocks at zero the extended model reproduces the base model.
 
-Dynamics (centre-of-mass acceleration added to ``g``; rotation stays torque free)::
+Dynamics (centre-of-mass accelerations added to ``g``; the rotation is torque free unless an
+effect below applies a torque: quadratic_drag, angular_drag, drag_torque)::
 
     linear_drag     c1  (1/s)      a += -c1 V
     quadratic_drag  c2  (kg/m^3)   air pressure on the faces of each box of the known shape at the
@@ -50,7 +51,7 @@ import numpy as np
 from numba import njit
 
 from vidsim.rigid.body import BoxBody
-from vidsim.rigid.dynamics import G_EARTH, gravity_vector, initial_state, quat_to_rot
+from vidsim.rigid.dynamics import G_EARTH, gravity_vector, initial_state, quat_to_rot, rk4_steps
 from vidsim.rigid.silhouette import render_coverage
 from vidsim.video.camera import PinholeCamera
 
@@ -201,7 +202,7 @@ def _integrate_ext(q0: np.ndarray, t0: float, times: np.ndarray, hmax: float, g:
     t = t0
     for idx in order:
         span = times[idx] - t
-        n = int(np.ceil(span / hmax - 1e-9))
+        n = rk4_steps(span, hmax, q)
         if n > 0:
             h = span / n
             for _ in range(n):
