@@ -37,8 +37,14 @@ def test_recovery_from_30_degree_guess(seed):
 
 @pytest.mark.slow
 def test_recovery_from_90_degree_guess_needs_the_multistart():
-    th, body = _throw(13)
-    guess = perturbed_guess(th.truth, np.random.default_rng(13), orient_deg=90.0)
+    """A throw whose 90-degree guess a single start does not recover (12.6 degrees off, measured in
+    review) and the icosahedral multistart does (0.57). Until 6 Dec 2026 this test used a throw
+    that a single start recovers too, so a multistart that did nothing passed it."""
+    th, body = _throw(12)
+    guess = perturbed_guess(th.truth, np.random.default_rng(12), orient_deg=90.0)
+    single = score(fit_throw(th.masks, th.times, th.camera, body, guess, {**SMALL, "multistart": "none"}),
+                   th.truth, body)
+    assert not single["success"], single
     res = fit_throw(th.masks, th.times, th.camera, body, guess, {**SMALL, "multistart": "icosahedral"})
     s = score(res, th.truth, body)
     assert s["success"], s
