@@ -33,17 +33,45 @@ SCENE = ClothSceneConfig(n_frames=16, frame_stride=1, budget=30, grid_levels=3)
 
 @pytest.fixture(scope="module")
 def null_case():
+    """The null case, run with spies on the fit and the diagnosis: what each was handed."""
+    from vidsim.gap import cloth_suite
+
     cfg = ClothDiagnoseConfig(top_k=2, metric_terms=True)
-    return run_case({"label": "none", "seed": 320}, SCENE, cfg)
+    seen: dict = {}
+    real_fit, real_diag = cloth_suite.fit_case, cloth_suite.diagnose_cloth
+
+    def fit_spy(*a, **k):
+        seen["fit_args"] = a
+        out = real_fit(*a, **k)
+        seen["fitted"] = out[0]
+        return out
+
+    def diag_spy(trial, params0, *a, **k):
+        seen["diag_trial"], seen["diag_params0"] = trial, params0
+        return real_diag(trial, params0, *a, **k)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cloth_suite, "fit_case", fit_spy)
+        mp.setattr(cloth_suite, "diagnose_cloth", diag_spy)
+        diag, score, cc = run_case({"label": "none", "seed": 320}, SCENE, cfg)
+    return diag, score, cc, seen
 
 
-def test_the_diagnosis_is_handed_no_truth():
-    """What the diagnosis can read is the footage's side only (the suite keeps truth apart)."""
+def test_the_diagnosis_is_handed_no_truth(null_case):
+    """What the diagnosis can read is the footage's side only (the suite keeps truth apart): its
+    signature and input type hold no truth, and in a run it is handed the blind fit's parameters,
+    which differ from the twin's true ones on every estimated name."""
     params = inspect.signature(diagnose_cloth).parameters
     assert not any("truth" in p for p in params)
     fields = {f.name for f in dataclasses.fields(ClothTrialInput)}
     assert fields == {"sil", "times", "corner_paths", "camera", "projector", "size", "density", "noise_sigma",
                       "theta", "mask"}
+    _, _, cc, seen = null_case
+    assert seen["diag_params0"] is seen["fitted"]  # the fit's result, not something else
+    assert seen["diag_trial"] is cc.trial and seen["fit_args"][0] is cc.fit_trial
+    truth = cc.truth["params"]
+    for name in SCENE.estimate:  # a fit that copied the truth would equal it to the bit
+        assert getattr(seen["fitted"], name) != truth[name], name
 
 
 def test_floor_twin_on_the_models_mesh_moves_exactly_as_the_model(null_case):
@@ -54,7 +82,7 @@ def test_floor_twin_on_the_models_mesh_moves_exactly_as_the_model(null_case):
     from vidsim.clothfit.features import FeatureSettings
     from vidsim.gap.cloth_model import ClothGapModel, ClothSetup
 
-    diag, _, cc = null_case
+    diag, _, cc, _ = null_case
     setup = ClothSetup(cc.trial.times, cc.trial.corner_paths, np.asarray(diag.frames)[:8], cc.trial.camera,
                        cc.trial.size, cc.trial.density, SCENE.resolution, SCENE.settle_s_model)
     model = ClothGapModel(setup, mid_range_params(density=cc.trial.density), ["bend", "stretch"], (), 0.5, 1.0)
@@ -65,7 +93,7 @@ def test_floor_twin_on_the_models_mesh_moves_exactly_as_the_model(null_case):
 
 
 def test_null_case_names_nothing(null_case):
-    diag, score, cc = null_case
+    diag, score, cc, _ = null_case
     assert diag.named == [], diag.verdict
     assert score["correct"] and score["named_first"] == "none"
     # every candidate refitted was judged on held-out frames and found unsupported
@@ -97,7 +125,7 @@ def test_withheld_grip_slip_is_named_first_and_closes_half_the_excess():
 
 
 def test_null_case_report_is_consistent(null_case):
-    diag, score, _ = null_case
+    diag, score, _, _ = null_case
     d = json.loads(json.dumps(diag.to_dict()))
     floor = d["noise_floor_heldout_px"]
     before = score["heldout_before_px"]
@@ -363,7 +391,7 @@ def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_
 def test_a_killed_split_diagnosis_resumes_after_its_last_finished_pass(null_case, tmp_path, monkeypatch):
     """Each finished pass is kept in the checkpoint folder: a rerun after a kill in the outline pass
     does not redo the grips pass, and a pass kept for other inputs is not reused."""
-    _, _, cc = null_case
+    _, _, cc, _ = null_case
     calls: list[str] = []
 
     def fake_region(trial, params0, estimated, *, cfg, progress=None, camera_candidates=None, **kw):
