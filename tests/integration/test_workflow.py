@@ -128,6 +128,8 @@ def test_changing_one_stage_config_reruns_only_its_dependents(tmp_path, shared_d
     assert "Warning" not in r.stdout + r.stderr, (r.stdout + r.stderr)[-3000:]
     # nothing changed: nothing to do
     r = _smk("-n", "--profile", "workflow/profiles/default", "--configfile", str(cfg), cwd=wf)
+    # (an empty job table alone would also pass for a dry run that failed: its code and message too)
+    assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, (r.stdout + r.stderr)[-3000:]
     assert _planned_jobs(r.stdout + r.stderr) == set(), r.stdout
     # one value of the footage stage changes: it (and `all`) rerun, the calibrations do not
     cfg.write_text(base + "overrides: {calibrate_scene: '', reality_demo: 'render.noise_sigma=4'}\n")
