@@ -39,8 +39,11 @@ knits tens of N/m), and its bend values as SI bending rigidities in N m for ligh
 fabrics (1e-6-1e-4 N m). Its damping and drag numbers cannot be mapped without the
 unknown mass and length normalisation, so our ranges for them are set from physics
 instead: quadratic normal drag 0.5*rho_air*C_d ~ 0.7 kg/m^3 for a flat plate, damping
-chosen so that the lowest membrane modes of a 0.3 m swatch are between undamped and
-critically damped. :data:`PARAM_RANGES` holds these ranges and the mid-range values of parameters a
+from undamped up to 0.1 N s/m, which damps the lowest in-plane membrane mode of a 0.3 m swatch
+(top row held) by a damping ratio of only 0.29 at the soft corner of the box (20 / 2 N/m) and
+0.014 at the stiff one (2000 / 500 N/m): critical damping would need about 0.4-4 N s/m (the
+range was described as reaching critical damping until a review measured it, 6 Dec 2026; not
+widened, so that the fits stay comparable). :data:`PARAM_RANGES` holds these ranges and the mid-range values of parameters a
 fit does not estimate (``docs/cloth_parameters.md`` explains them). The fit's search box
 (``cloth.fit.space``) mirrors it except for ``stretch``, searched up to 4000 N/m rather than 2000 so
 that the stiffest woven fabrics (MuJoCo linen: the oracle fit gives 3690 N/m) lie inside it.
