@@ -6,8 +6,18 @@ scored with the same metric: ``matrix.csv`` / ``matrix.png`` (rows: parameters, 
 win each column). ``table1.csv`` / ``table1.png`` collect per fabric the grid start, each trial's
 optimum and the selected set with E1, E2 and the cross errors (from ``select_cloth``'s table).
 
-Every cell is logged as it is scored, in ``.validate_cloth.checkpoint/column<j>.jsonl`` in the
-output folder (:class:`vidsim.cli.cloth_common.LoggedScores`, as ``skirt_cloth``): a killed run,
+Is a column decided? A single run's error on a chaotic motion is one draw of what parameters
+within 1e-4 of each other score (docs/cloth_study.md, "Session 43"). Every set is therefore also
+scored as ``cloth.validate.chaos_draws`` moved copies (each of the nine parameters scaled by the
+fixed draws of exp(N(0, ``chaos_sigma``)) of ``cloth.model.chaos_members``, the same draws for every
+set), and per column the own set's copies are compared with every other set's, copy by copy
+(:func:`vidsim.cli.cloth_common.paired_margins`, the skirt matrix's test): ``won`` (significantly
+better than every other set), ``lost`` (the best other set significantly better) or ``undecided``.
+``matrix.csv`` and ``diagonal_wins`` stay the sets' own (unmoved) errors, the seed's Figure 8;
+``matrix_copies.csv`` holds the copies' means, on which the verdicts rest.
+
+Every cell is logged as it is scored, in ``.validate_cloth.checkpoint/column<j>.jsonl`` (the copies in
+``copies/column<j>.jsonl`` there) in the output folder (:class:`vidsim.cli.cloth_common.LoggedScores`, as ``skirt_cloth``): a killed run,
 run again, replays the cells already scored and simulates only the rest; a changed setting or
 footage does not replay them. The folder is removed once ``validation.yaml`` is written.
 """
@@ -18,7 +28,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
@@ -28,6 +38,7 @@ from vidsim.cli.cloth_common import (
     fabric_sets,
     matrix_csv,
     matrix_figure,
+    paired_margins,
     read_selected,
 )
 from vidsim.cloth import ESTIMATED_NAMES
@@ -42,14 +53,35 @@ def run(cfg: DictConfig) -> None:
     for f, s_ in zip(pfiles, sel):  # checked before the matrix's simulations, not after them
         if not isinstance(s_.get("trials"), list):
             raise ClothStageError(f"{f}: field 'trials' is missing (not a select_cloth output)")
+    vc = cfg.cloth.validate
+    draws, sigma = vc.chaos_draws, vc.chaos_sigma
+    if isinstance(draws, bool) or int(draws) != draws or draws < 0 or draws == 1:
+        raise ClothStageError(f"cloth.validate.chaos_draws = {draws}: expected 0 (no copies) or a whole number >= 2 "
+                              "(a paired test needs two copies)")
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise ClothStageError(f"cloth.validate.chaos_sigma = {sigma}: expected a relative scale > 0 (e.g. 1e-4)")
     ckpt = out / ".validate_cloth.checkpoint"  # the cells' logs; removed once validation.yaml is written
     if ckpt.is_dir():
         print(f"validate_cloth: resuming from {ckpt} (cells already scored are replayed, not simulated)", flush=True)
     E, _ = fabric_matrix(footage, sets, cfg, fabrics, "validate_cloth", checkpoint=ckpt)
     n = len(fabrics)
     wins = diagonal_wins(E)
+    verdicts, tally, Ec = {}, None, None
+    if draws:
+        ccfg = OmegaConf.merge(cfg, {"cloth": {"model": {"chaos_members": int(draws), "chaos_sigma": float(sigma)}}})
+        cells: list = []
+        Ec, _ = fabric_matrix(footage, sets, ccfg, fabrics, f"validate_cloth copies ({int(draws)} per set)",
+                              members=cells, checkpoint=ckpt / "copies")
+        for j, m in paired_margins(Ec, cells).items():
+            verdict = ("won" if m["margin"] < 0 else "lost") if m["decided"] else "undecided"
+            verdicts[fabrics[j]] = {"verdict": verdict, "rival": fabrics[m["rival"]], "margin": m["margin"],
+                                    "se": m["se"], "copies": m["members"], "cut": m["cut"]}
+        tally = {k: sum(v["verdict"] == k for v in verdicts.values()) for k in ("won", "lost", "undecided")}
+        write_text(out / "matrix_copies.csv", matrix_csv(Ec, fabrics))
+    note = (f"over {int(draws)} copies moved by {sigma:g} (paired t, 95 %, against every other set): won {tally['won']}, "
+            f"lost {tally['lost']}, undecided {tally['undecided']}") if tally else ""
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
-    matrix_figure(E, fabrics, "held-out footage (robot motion)", out / "matrix.png")
+    matrix_figure(E, fabrics, "held-out footage (robot motion)", out / "matrix.png", note)
     import matplotlib
 
     matplotlib.use("Agg")
@@ -88,10 +120,15 @@ def run(cfg: DictConfig) -> None:
     else:  # params files without candidate rows (made by hand): said, not a crash in matplotlib's table
         ax.text(0.5, 0.5, "Table 1: the params files list no candidates (no select_cloth rows)", ha="center")
     save_figure(fig, out / "table1.png")
-    write_yaml(out / "validation.yaml", {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)),
-                                         "of": n, "wins_per_footage": dict(zip(fabrics, wins))})
+    doc = {"fabrics": fabrics, "matrix": E.tolist(), "diagonal_wins": int(sum(wins)), "of": n,
+           "wins_per_footage": dict(zip(fabrics, wins)),
+           "copies": {"draws": int(draws), "sigma": float(sigma),
+                      "matrix_mean": None if Ec is None else Ec.tolist(),
+                      "diagonal_wins_mean": None if Ec is None else int(sum(diagonal_wins(Ec)))},
+           "verdicts": verdicts, "decided": tally}
+    write_yaml(out / "validation.yaml", doc)
     shutil.rmtree(ckpt, ignore_errors=True)
-    print(f"validate_cloth: diagonal wins {sum(wins)}/{n}", flush=True)
+    print(f"validate_cloth: diagonal wins {sum(wins)}/{n}" + (f"; {note}" if note else ""), flush=True)
 
 
 main = stage_app("validate_cloth", run)

@@ -254,6 +254,13 @@ class ClothValidateConfig:
     fabrics: list[str] = field(default_factory=list)
     params: list[str] = field(default_factory=list)
     footage: list[str] = field(default_factory=list)
+    #: moved copies of every set (each of the nine parameters scaled by fixed draws of
+    #: exp(N(0, chaos_sigma)), the same draws for every set: cloth.model.chaos_members' draws)
+    #: scored beside the sets themselves: a column's win or loss is *decided* when the paired
+    #: differences over the copies settle it, as the skirt matrix's fold-seeded starts do (0: no
+    #: copies, every column undecided)
+    chaos_draws: int = 8
+    chaos_sigma: float = 1e-4
 
 
 @dataclass

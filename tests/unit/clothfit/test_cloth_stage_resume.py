@@ -150,21 +150,65 @@ def test_skirt_matrix_resumes_bit_identical_and_recomputes_after_a_setting_chang
     assert yaml.safe_load((out / "skirt.yaml").read_text())["matrix"] != doc["matrix"]
 
 
-def test_validation_matrix_resumes_bit_identical(tmp_path, sims):
+def _validation_args(tmp_path, *extra: str) -> list[str]:
     files = []
     for name, p in (("soft", SOFT), ("stiff", STIFF)):
         (tmp_path / f"{name}.yaml").write_text(yaml.safe_dump({"params": params_dict(p), "trials": [], "rows": []}))
         files.append(str(tmp_path / f"{name}.yaml"))
-    args = [f"paths.results={tmp_path}", "cloth.validate.fabrics=[soft,stiff]",
-            f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage=[{tmp_path / 'soft'},{tmp_path / 'stiff'}]"]
+    return [f"paths.results={tmp_path}", "cloth.validate.fabrics=[soft,stiff]",
+            f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage=[{tmp_path / 'soft'},{tmp_path / 'stiff'}]",
+            *extra]
+
+
+def test_validation_matrix_resumes_bit_identical(tmp_path, sims):
+    args = _validation_args(tmp_path, "cloth.validate.chaos_draws=2")
     whole = tmp_path / "whole"
     validate_stage.run(_cfg(*args, f"paths.out={whole}"))
-    assert sims["n"] == 4 and not (whole / ".validate_cloth.checkpoint").exists()
+    # 4 cells of the sets themselves, then 4 of their moved copies (one evaluation each, 2 simulations)
+    assert sims["n"] == 8 and not (whole / ".validate_cloth.checkpoint").exists()
     out = tmp_path / "resumed"
     _run_killed(validate_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=3)
     assert len(list((out / ".validate_cloth.checkpoint").glob("column*.jsonl"))) == 2
     validate_stage.run(_cfg(*args, f"paths.out={out}"))
-    assert sims["n"] == 1  # only the cell not logged (no diagonal kept for videos here)
-    for f in ("validation.yaml", "matrix.csv"):
+    assert sims["n"] == 1 + 4  # the set's cell not logged (no diagonal kept for videos here), then the copies
+    for f in ("validation.yaml", "matrix.csv", "matrix_copies.csv"):
+        assert (out / f).read_bytes() == (whole / f).read_bytes()
+    # killed among the copies: only the copies' cells not logged are simulated again
+    _run_killed(validate_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=6)
+    validate_stage.run(_cfg(*args, f"paths.out={out}"))
+    assert sims["n"] == 2
+    for f in ("validation.yaml", "matrix.csv", "matrix_copies.csv"):
         assert (out / f).read_bytes() == (whole / f).read_bytes()
     assert not (out / ".validate_cloth.checkpoint").exists()
+
+
+def test_validation_verdicts_follow_the_copies_paired_differences(tmp_path, sims):
+    """Each column's verdict (won / lost / undecided) follows from the paired t over the moved
+    copies against the best other set; the matrix stays the sets' own errors; draws 0 gives no
+    copies, and one copy (no test possible) is refused before any simulation."""
+    whole = tmp_path / "v3"
+    validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=3"), f"paths.out={whole}"))
+    doc = yaml.safe_load((whole / "validation.yaml").read_text())
+    E, Ec = np.array(doc["matrix"]), np.array(doc["copies"]["matrix_mean"])
+    assert doc["copies"]["draws"] == 3 and Ec.shape == E.shape == (2, 2)
+    assert not np.allclose(Ec, E, rtol=1e-12)  # the copies are moved sets, not the sets again
+    for j, fab in enumerate(("soft", "stiff")):
+        m = doc["verdicts"][fab]
+        assert m["copies"] == 3 and m["rival"] == ("stiff", "soft")[j]
+        assert m["cut"] == pytest.approx(4.303, abs=1e-3)  # Student's t at 95 %, 2 degrees of freedom
+        want = ("won" if m["margin"] + m["cut"] * m["se"] < 0 else "lost" if m["margin"] - m["cut"] * m["se"] > 0
+                else "undecided")
+        assert m["verdict"] == want, (fab, m)
+        assert m["margin"] == pytest.approx(Ec[j, j] - Ec[1 - j, j], rel=1e-9)
+    assert doc["decided"] == {k: sum(v["verdict"] == k for v in doc["verdicts"].values()) for k in ("won", "lost", "undecided")}
+    # the stiff twin's truth explains its own (non-chaotic) footage better than the soft truth in every copy
+    assert doc["verdicts"]["stiff"]["verdict"] == "won", doc["verdicts"]
+    sims["n"] = 0
+    validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=0"), f"paths.out={tmp_path / 'v0'}"))
+    doc0 = yaml.safe_load((tmp_path / "v0" / "validation.yaml").read_text())
+    assert sims["n"] == 4 and doc0["verdicts"] == {} and doc0["decided"] is None and doc0["matrix"] == doc["matrix"]
+    assert not (tmp_path / "v0" / "matrix_copies.csv").exists()
+    sims["n"] = 0
+    with pytest.raises(common.ClothStageError, match="cloth.validate.chaos_draws = 1"):
+        validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=1"), f"paths.out={tmp_path / 'v1'}"))
+    assert sims["n"] == 0
