@@ -34,9 +34,22 @@ def write_diagnosis(d: Any, out: Path, inputs: dict, masks: np.ndarray, stage: s
     plot_diagnosis(d, tmp / "diagnosis.png", title=title, floor_label=floor_label)
     with make_logger(tmp / "diagnosis.rrd", f"vidsim.{stage}", rerun) as lg:
         log_diagnosis(lg, d, masks)
+    chaos = _chaos_px(d)
     print(f"{stage} {title}: {verdict_text(d)} (held-out gap {d.gap_per_frame[d.test].mean():.1f} px, "
-          f"floor {d.floor_test.mean():.1f} px, {d.seconds:.0f} s)", file=sys.stderr)
+          f"floor {d.floor_test.mean():.1f} px" + (f", the model's own chaos {chaos:.1f} px" if chaos is not None else "")
+          + f", {d.seconds:.0f} s)", file=sys.stderr)
     replace_dir(tmp, out)
+
+
+def _chaos_px(d: Any) -> float | None:
+    """The held-out mean of a cloth diagnosis's ``where.model_chaos`` (None: not measured)."""
+    mc = getattr(d, "where", {}).get("model_chaos") or {}
+    return mc.get("heldout_px")
+
+
+def _chaos_per_frame(d: Any) -> np.ndarray | None:
+    mc = getattr(d, "where", {}).get("model_chaos") or {}
+    return None if mc.get("per_frame_px") is None else np.asarray(mc["per_frame_px"], float)
 
 
 def verdict_text(d: Any) -> str:
@@ -62,6 +75,10 @@ def plot_diagnosis(d: RigidDiagnosis, path: Path, title: str = "", floor_label: 
     ax[0].plot(fr, d.gap_per_frame, "k.-", label="base model (refit on training frames)")
     ax[0].plot(fr[d.test], d.gap_per_frame[d.test], "ko", mfc="none", ms=8, label="held-out frames")
     ax[0].plot(fr[d.test], d.floor_test, "s", color="gray", ms=4, label=floor_label)
+    chaos = _chaos_per_frame(d)
+    if chaos is not None:
+        ax[0].plot(fr, chaos, ":", color="tab:purple",
+                   label=f"the model's own chaos (the fit vs copies moved by {d.where['model_chaos']['sigma']:g})")
     keys = d.named_refit_keys() if hasattr(d, "named_refit_keys") else ["+".join(d.named[: i + 1]) for i in range(len(d.named))]
     region = d.extra.get("primary_region") if hasattr(d, "extra") else None
     for name in keys[:2]:
@@ -95,12 +112,15 @@ def log_diagnosis(lg: Any, d: RigidDiagnosis, masks: np.ndarray, prefix: str = "
     """Footage silhouettes, per-frame gap curves (base, floor, after each refit) on the frame timeline."""
     after = {k: np.asarray(v["gap_per_frame_after_px"]) for k, v in d.refits.items()}
     floor = dict(zip(d.test.tolist(), d.floor_test.tolist()))
+    chaos = _chaos_per_frame(d)
     for i, k in enumerate(d.frames):
         lg.set_frame(int(k))
         lg.mask(f"{prefix}footage/camera/mask", masks[k])
         lg.scalar(f"{prefix}metric/gap_base_px", float(d.gap_per_frame[i]))
         if i in floor:
             lg.scalar(f"{prefix}metric/noise_floor_px", float(floor[i]))
+        if chaos is not None:
+            lg.scalar(f"{prefix}metric/model_chaos_px", float(chaos[i]))
         for name, g in after.items():
             lg.scalar(f"{prefix}metric/gap_after_{name.replace(':', '_')}_px", float(g[i]))
     lg.set_frame(int(d.frames[-1]))

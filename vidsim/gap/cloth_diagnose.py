@@ -190,6 +190,13 @@ class ClothDiagnoseConfig:
             its held-out closure (:func:`stuck_at_start`; 0: off). Added 4 Dec 2026 (session 29):
             linen's quick diagnosis named a vertical wind of exactly its start point, -0.30 m/s,
             closure 0.52, the failure mode the outline pass had shown on the MuJoCo null case.
+        chaos_draws, chaos_sigma: the model's own chaos at the base refit, reported beside the
+            noise floor (``where.model_chaos``; not part of the naming rule): the gap between the
+            base model's silhouettes at the refit and at ``chaos_draws`` copies of it with every
+            estimated parameter scaled by exp(N(0, ``chaos_sigma``)), per frame, in the gap's own
+            pixels. Parameters 1e-4 apart are the same fabric to any measurement, so where that
+            spread is a large part of the dynamics gap, no deterministic effect can be expected
+            to close it (docs/cloth_study.md, "Session 43"). 0 draws: off.
         hold_dynamics: refit an imaging or timing candidate (and sets of them) with the base's
             dynamics parameters held at the base refit, only the candidate and the outline offset
             moving: they re-render the same motion. Off by default: measured on the grips pass
@@ -243,6 +250,8 @@ class ClothDiagnoseConfig:
     multirate: str = "1"
     damping: str = "explicit"
     min_refit_move: float = 0.01
+    chaos_draws: int = 4
+    chaos_sigma: float = 1e-4
 
     def validate(self) -> None:
         """Raise :class:`ClothGapError` naming the field when a setting is not usable."""
@@ -272,6 +281,11 @@ class ClothDiagnoseConfig:
                 raise ClothGapError(f"gap.cloth.diagnose.{k} must be a positive number, got {v!r}")
         if not (np.isfinite(self.min_refit_move) and self.min_refit_move >= 0):
             raise ClothGapError(f"gap.cloth.diagnose.min_refit_move must be >= 0, got {self.min_refit_move!r}")
+        if isinstance(self.chaos_draws, bool) or int(self.chaos_draws) != self.chaos_draws or self.chaos_draws < 0:
+            raise ClothGapError(f"gap.cloth.diagnose.chaos_draws must be a whole number >= 0 (0: off), got "
+                                f"{self.chaos_draws!r}")
+        if not (np.isfinite(self.chaos_sigma) and self.chaos_sigma >= 0):
+            raise ClothGapError(f"gap.cloth.diagnose.chaos_sigma must be a relative scale >= 0, got {self.chaos_sigma!r}")
         for k in ("min_closure", "min_excess"):
             v = float(getattr(self, k))
             if not np.isfinite(v):
@@ -954,6 +968,41 @@ def twin_floor(model: ClothGapModel, theta: np.ndarray, trial: ClothTrialInput, 
                       "blur_px": float(cfg.floor_blur_px)}
 
 
+def model_chaos(base: ClothGapModel, theta: np.ndarray, problem, estimated: list[str], T: int, test: np.ndarray,
+                cfg: ClothDiagnoseConfig) -> dict:
+    """The base model's own chaos at ``theta`` (see ``ClothDiagnoseConfig.chaos_draws``): per frame
+    the mean gap between its silhouettes at ``theta`` and at copies with every estimated parameter
+    scaled by exp(N(0, ``chaos_sigma``)) (seed ``cfg.seed``), in the pixels the gap is measured in
+    (``problem(model, frames, observed)``). Copies that fail to simulate are counted, not averaged.
+    {} when off or when ``theta`` itself does not simulate."""
+    from vidsim.gap.cloth_model import LOG_PARAMS
+
+    if cfg.chaos_draws <= 0:
+        return {}
+    own, ok = base.render(theta)
+    if not ok:
+        return {}
+    pc = problem(base, np.arange(T), own)
+    rng = np.random.default_rng(cfg.seed + 29)
+    gaps, failed = [], 0
+    for _ in range(int(cfg.chaos_draws)):
+        th = np.array(theta, float)
+        for i, n in enumerate(estimated):
+            f = float(np.exp(rng.normal(0.0, cfg.chaos_sigma)))
+            th[i] = th[i] + np.log(f) if n in LOG_PARAMS else th[i] * f
+        g = pc.gap_per_frame(th, np.arange(T))
+        if np.all(np.isfinite(g)):
+            gaps.append(g)
+        else:
+            failed += 1
+    if not gaps:
+        return {"draws": int(cfg.chaos_draws), "sigma": float(cfg.chaos_sigma), "failed": failed, "heldout_px": None,
+                "per_frame_px": None}
+    G = np.mean(gaps, axis=0)
+    return {"draws": int(cfg.chaos_draws), "sigma": float(cfg.chaos_sigma), "failed": failed,
+            "heldout_px": float(G[test].mean()), "per_frame_px": G.tolist()}
+
+
 # ----------------------------------------------------------------------------- driver
 def diagnose_cloth(trial: ClothTrialInput, params0: ClothParams, estimated: list[str], *,
                    resolution: int = 12, frame_stride: int = 2, settle_s: float = 0.5, settle_bath: float = 0.0,
@@ -1154,6 +1203,8 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
     floor_mean = float(floor[test].mean())
     floor_train_mean = float(floor[train].mean())
     note("noise floor")
+    chaos = model_chaos(base, theta_b, problem, estimated, T, test, cfg)
+    note("model chaos")
     # 4. camera part: the base motion re-rendered through a camera with the imaging candidates
     cam_pool = [c for c in (camera_candidates or cands) if c not in skipped and base.effect_size(c) > 0]
     cam_effects = tuple(c for c in IMAGING if c in cam_pool)
@@ -1329,6 +1380,10 @@ def _diagnose_region(trial: ClothTrialInput, params0: ClothParams, estimated: li
         "extra_vs_missing_px": {"model_covers_footage_not": float(np.clip(rimg, 0, None).sum() / cfg.scale ** 2 / T),
                                 "footage_covers_model_not": float(np.clip(-rimg, 0, None).sum() / cfg.scale ** 2 / T)},
     }
+    if chaos:
+        dyn = where["split_heldout_px"]["dynamics"]
+        chaos["share_of_dynamics"] = chaos["heldout_px"] / dyn if chaos["heldout_px"] is not None and dyn > 0 else None
+        where["model_chaos"] = chaos
     if cfg.metric_terms:
         mt = metric_terms(base, theta_b, trial, clip, fset, alpha)
         if mt is not None:

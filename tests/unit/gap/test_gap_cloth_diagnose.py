@@ -499,3 +499,40 @@ def test_refit_free_mask_holds_the_dynamics_only_for_imaging_and_timing_effects(
     assert free[:2].tolist() == [False, False] and free[2]
     assert free[jit.slices["time_jitter"]].tolist() == timed.tolist()
     assert refit_free_mask(jit, ("time_jitter",), timed, False)[:3].all()
+
+
+def test_model_chaos_is_zero_without_a_move_and_grows_over_the_clip(null_case):
+    """The model's own chaos (``where.model_chaos``): copies of a fit moved by 0 reproduce it to the
+    pixel (the same simulation), and copies moved by 1e-4 drift apart as the clip goes on, which
+    is what chaos is (the null case's soft swatch: the docstring above). Reported in the null
+    case's diagnosis, its held-out mean consistent with its per-frame values."""
+    from vidsim.cloth import mid_range_params
+    from vidsim.gap.cloth_model import ClothGapModel, ClothSetup
+
+    diag, _, cc, _ = null_case
+    mc = diag.where["model_chaos"]
+    per = np.asarray(mc["per_frame_px"])
+    assert mc["draws"] == 4 and mc["failed"] == 0 and per.shape == (len(diag.frames),)
+    assert mc["heldout_px"] == pytest.approx(per[diag.test].mean(), rel=1e-12)
+    setup = ClothSetup(cc.trial.times, cc.trial.corner_paths, np.asarray(diag.frames), cc.trial.camera,
+                       cc.trial.size, cc.trial.density, SCENE.resolution, SCENE.settle_s_model)
+    est = ["bend", "stretch", "shear"]
+    model = ClothGapModel(setup, mid_range_params(density=cc.trial.density).replace(bend=3e-6, stretch=300.0, shear=40.0),
+                          est, (), 0.5, 1.0)
+    th = model.theta0()
+    T = len(diag.frames)
+
+    def problem(m, fr, o):
+        return cloth_diagnose.Problem(m, o, np.ones(o.shape, bool), fr, {}, 1e-3)
+
+    zero = cloth_diagnose.model_chaos(model, th, problem, est, T, np.arange(T),
+                                      ClothDiagnoseConfig(chaos_draws=2, chaos_sigma=0.0))
+    assert zero["failed"] == 0 and np.all(np.asarray(zero["per_frame_px"]) == 0.0)
+    moved = cloth_diagnose.model_chaos(model, th, problem, est, T, np.arange(T), ClothDiagnoseConfig(chaos_draws=4))
+    g = np.asarray(moved["per_frame_px"])
+    q = T // 4
+    assert g[:q].mean() < 0.5, g  # within the first quarter the copies still coincide (sub-pixel)
+    assert g[-q:].mean() > 5.0 * max(g[:q].mean(), 0.1), g  # and by the end they have drifted apart
+    assert cloth_diagnose.model_chaos(model, th, problem, est, T, np.arange(T), ClothDiagnoseConfig(chaos_draws=0)) == {}
+    with pytest.raises(cloth_diagnose.ClothGapError, match="chaos_draws"):
+        ClothDiagnoseConfig(chaos_draws=-1).validate()
