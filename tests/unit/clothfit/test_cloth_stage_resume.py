@@ -185,7 +185,8 @@ def test_validation_matrix_resumes_bit_identical(tmp_path, sims):
 def test_validation_verdicts_follow_the_copies_paired_differences(tmp_path, sims):
     """Each column's verdict (won / lost / undecided) follows from the paired t over the moved
     copies against the best other set; the matrix stays the sets' own errors; draws 0 gives no
-    copies, and one copy (no test possible) is refused before any simulation."""
+    copies, each footage paired with the other twin's truth loses decidedly, and one copy (no test
+    possible) or a spread outside (0, 1] is refused before any simulation."""
     whole = tmp_path / "v3"
     validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=3"), f"paths.out={whole}"))
     doc = yaml.safe_load((whole / "validation.yaml").read_text())
@@ -208,7 +209,20 @@ def test_validation_verdicts_follow_the_copies_paired_differences(tmp_path, sims
     doc0 = yaml.safe_load((tmp_path / "v0" / "validation.yaml").read_text())
     assert sims["n"] == 4 and doc0["verdicts"] == {} and doc0["decided"] is None and doc0["matrix"] == doc["matrix"]
     assert not (tmp_path / "v0" / "matrix_copies.csv").exists()
+    # each footage paired with the *other* twin's truth: both columns are lost, and decided so
     sims["n"] = 0
-    with pytest.raises(common.ClothStageError, match="cloth.validate.chaos_draws = 1"):
-        validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=1"), f"paths.out={tmp_path / 'v1'}"))
+    sw = tmp_path / "swapped"
+    sw.mkdir()
+    for name, p in (("soft", STIFF), ("stiff", SOFT)):
+        (sw / f"{name}.yaml").write_text(yaml.safe_dump({"params": params_dict(p), "trials": [], "rows": []}))
+    validate_stage.run(_cfg(*_validation_args(tmp_path, "cloth.validate.chaos_draws=3"), f"paths.out={tmp_path / 'vs'}",
+                            f"cloth.validate.params=[{sw / 'soft.yaml'},{sw / 'stiff.yaml'}]"))
+    docs = yaml.safe_load((tmp_path / "vs" / "validation.yaml").read_text())
+    assert docs["diagonal_wins"] == 0 and docs["decided"] == {"won": 0, "lost": 2, "undecided": 0}, docs["verdicts"]
+    sims["n"] = 0
+    for bad, msg in (("cloth.validate.chaos_draws=1", "cloth.validate.chaos_draws = 1"),
+                     ("cloth.validate.chaos_sigma=0", "cloth.validate.chaos_sigma = 0"),
+                     ("cloth.validate.chaos_sigma=2", "cloth.validate.chaos_sigma = 2")):
+        with pytest.raises(common.ClothStageError, match=msg):
+            validate_stage.run(_cfg(*_validation_args(tmp_path, bad), f"paths.out={tmp_path / 'v1'}"))
     assert sims["n"] == 0
