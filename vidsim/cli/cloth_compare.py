@@ -19,6 +19,13 @@ evaluations since 3 Dec 2026), a joint evaluation counted
 once per trial, and for the per-trial methods the selection's simulations (every candidate on every
 trial, and a polish's, from ``params.yaml``'s ``trial_simulations``) included),
 ``heldout.png`` and ``curves.png`` (best error so far against evaluations, annealing vs CMA-ES).
+
+Is the best method's lead decided? Each estimate is also scored as ``cloth.compare.chaos_draws``
+copies moved by ``chaos_sigma`` (the fixed draws of ``cloth.model.chaos_members``, the same for
+every method); per fabric the method of least mean error over the copies is ``decided`` when its
+copies beat every other method's copy by copy (:func:`vidsim.cli.cloth_common.paired_margins`,
+paired t at 95 %), else the lead is within the model's chaos at these estimates. The test covers
+that chaos only, not the fits' spread over annealing seeds.
 """
 
 from __future__ import annotations
@@ -27,10 +34,17 @@ import csv
 from pathlib import Path
 
 import numpy as np
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from vidsim.cli._app import stage_app
-from vidsim.cli.cloth_common import ClothStageError, load_trial, make_objective, params_from_dict, read_selected
+from vidsim.cli.cloth_common import (
+    ClothStageError,
+    load_trial,
+    make_objective,
+    paired_margins,
+    params_from_dict,
+    read_selected,
+)
 from vidsim.io.atomic import write_text, write_yaml
 from vidsim.optim.cache import logged_keys
 from vidsim.log.progress import Progress
@@ -103,6 +117,13 @@ def run(cfg: DictConfig) -> None:
     if len(cc.anneal_traces) != nt * n or len(cc.cmaes_traces) != nt * n or len(cc.joint_traces) != n or nt < 1:
         raise ClothStageError("cloth.compare: anneal_traces and cmaes_traces need the same number of trials per fabric, "
                               "joint_traces one per fabric")
+    draws, sigma = cc.chaos_draws, cc.chaos_sigma
+    if isinstance(draws, bool) or int(draws) != draws or draws < 0 or draws == 1:
+        raise ClothStageError(f"cloth.compare.chaos_draws = {draws}: expected 0 (no copies) or a whole number >= 2 "
+                              "(a paired test needs two copies)")
+    if not (np.isfinite(sigma) and 0 < sigma <= 1):
+        raise ClothStageError(f"cloth.compare.chaos_sigma = {sigma}: expected a log-scale spread in (0, 1] "
+                              "(1e-4 moves the parameters by 0.01 %)")
     for p in lists["joint"]:
         if not Path(p).is_file():
             raise ClothStageError(f"{p}: fit.yaml is missing")
@@ -127,13 +148,23 @@ def run(cfg: DictConfig) -> None:
     select["joint"] = [0] * n
     evals = {m: [fits[m][i] + select[m][i] for i in range(n)] for m in METHODS}
     E = np.zeros((n, len(METHODS)))
-    prog = Progress(E.size, "compare_cloth held-out", enabled=cfg.log.progress)
+    prog = Progress(E.size * (2 if draws else 1), "compare_cloth held-out", enabled=cfg.log.progress)
+    ccfg = OmegaConf.merge(cfg, {"cloth": {"model": {"chaos_members": int(draws), "chaos_sigma": float(sigma)}}}) if draws else None
+    copies = [[[] for _ in METHODS] for _ in range(n)]
     for i, f in enumerate(lists["heldout"]):
-        obj = make_objective([load_trial(f, cfg)], cfg)
+        tr = load_trial(f, cfg)
+        obj = make_objective([tr], cfg)
         for m, meth in enumerate(METHODS):
             E[i, m] = obj.evaluate_params(sets[meth][i]).score
             prog.update(note=f"{fabrics[i]} {meth}")
+        if ccfg is not None:
+            cobj = make_objective([tr], ccfg)
+            for m, meth in enumerate(METHODS):
+                r = cobj.evaluate_params(sets[meth][i])
+                copies[i][m] = list(r.members[0]) if r.ok and r.members else []
+                prog.update(note=f"{fabrics[i]} {meth}, {int(draws)} moved copies")
     best = [METHODS[int(np.argmin(E[i]))] for i in range(n)]
+    leads = {fab: _lead(copies[i]) for i, fab in enumerate(fabrics)} if draws else {}
     _figures(fabrics, E, traces, nt, out)  # the figures first, the tables last (a kill leaves no new table beside old figures)
     write_text(out / "compare.csv", "fabric," + ",".join(f"heldout_{m}" for m in METHODS) + "," +
                ",".join(f"simulations_{m}" for m in METHODS) + ",best\n" + "".join(
@@ -144,8 +175,27 @@ def run(cfg: DictConfig) -> None:
         "trial_simulations_counted": SIMULATIONS_COUNTED,
         "trial_simulations_parts": {m: {"fits": fits[m], "selection": select[m]} for m in METHODS},
         "best_on_heldout": dict(zip(fabrics, best)),
-        "wins": {m: int(sum(b == m for b in best)) for m in METHODS}})
-    print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best)), flush=True)
+        "wins": {m: int(sum(b == m for b in best)) for m in METHODS},
+        "copies": {"draws": int(draws), "sigma": float(sigma), "leads": leads}})
+    print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best))
+          + ("; over the moved copies " + ", ".join(f"{f}: {v['best']} ({'decided' if v['decided'] else 'undecided'})"
+                                                    for f, v in leads.items()) if leads else ""), flush=True)
+
+
+def _lead(members: list[list[float]]) -> dict:
+    """The method of least mean error over the moved copies and whether its lead is decided: the
+    diagonal test of :func:`~vidsim.cli.cloth_common.paired_margins` on a matrix whose columns all
+    hold the methods' copies (column ``b``: does method ``b`` beat every other method?)."""
+    k = len(METHODS)
+    ok = all(len(x) >= 2 and len(x) == len(members[0]) and np.all(np.isfinite(x)) for x in members)
+    if not ok:  # a failed copy (or none): no test
+        return {"best": None, "decided": False,
+                "mean_error": {m: (float(np.mean(x)) if x else None) for m, x in zip(METHODS, members)}}
+    means = np.array([float(np.mean(x)) for x in members])
+    b = int(np.argmin(means))
+    v = paired_margins(np.tile(means[:, None], (1, k)), [[list(x)] * k for x in members])[b]
+    return {"best": METHODS[b], "decided": bool(v["decided"]), "rival": METHODS[v["rival"]], "margin": v["margin"],
+            "se": v["se"], "copies": v["members"], "mean_error": dict(zip(METHODS, means.tolist()))}
 
 
 def _figures(fabrics: list[str], E: np.ndarray, traces: dict, nt: int, out: Path) -> None:

@@ -330,6 +330,11 @@ class ClothCompareConfig:
     anneal_traces: list[str] = field(default_factory=list)
     cmaes_traces: list[str] = field(default_factory=list)
     joint_traces: list[str] = field(default_factory=list)
+    #: moved copies of each method's estimate scored on the held-out footage (the fixed draws of
+    #: cloth.model.chaos_members, the same for every method), to say whether the best method's lead
+    #: is decided (paired t against every other method) or within the model's chaos (0: off)
+    chaos_draws: int = 8
+    chaos_sigma: float = 1e-4
 
 
 @dataclass

@@ -64,8 +64,13 @@ def _cfg(tmp_path, lists):
 
 def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatch):
     monkeypatch.setattr(stage, "load_trial", lambda f, cfg: None)
-    monkeypatch.setattr(stage, "make_objective", lambda trials, cfg: SimpleNamespace(
-        evaluate_params=lambda p: SimpleNamespace(score=float(p.stretch))))
+    def objective(trials, cfg):  # a set's error is its stretch; its moved copies' errors spread by 1 %
+        k = int(cfg.cloth.model.chaos_members)
+        return SimpleNamespace(evaluate_params=lambda p: SimpleNamespace(
+            score=float(p.stretch), ok=True,
+            members=[[float(p.stretch) * (1 + 0.01 * np.sin(j + 1)) for j in range(k)] if k else [float(p.stretch)]]))
+
+    monkeypatch.setattr(stage, "make_objective", objective)
     tr = {}
     for m, flags in (("a1", [1, 1, 1, 0, 1, 1]), ("a2", [1, 1, 1, 0, 1, 0]), ("c1", [1] * 6), ("c2", [1, 1, 1, 1, 1, 0]),
                      ("j", [1, 1, 1, 0, 1, 1])):
@@ -88,6 +93,10 @@ def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatc
     assert "cache" in doc["trial_simulations_counted"] and "selection" in doc["trial_simulations_counted"]
     csv_row = (tmp_path / "compare" / "compare.csv").read_text().splitlines()[1].split(",")
     assert csv_row[4:7] == ["31", "10", "19"] and csv_row[-1] == "joint"
+    # joint's estimate (stretch 100) beats cmaes' (150) and anneal's (200) in each of the 8 moved copies
+    lead = doc["copies"]["leads"]["twin"]
+    assert doc["copies"]["draws"] == 8 and lead["best"] == "joint" and lead["decided"] and lead["rival"] == "cmaes"
+    assert lead["margin"] == pytest.approx(lead["mean_error"]["joint"] - lead["mean_error"]["cmaes"], rel=1e-12)
     # traces from before the column: counted from the evals.jsonl beside them (the run's distinct
     # points: 4 here, one failed and one answered twice), refused by name only where there is none
     old = {}
@@ -118,3 +127,18 @@ def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatc
     (tmp_path / "cmaes.yaml").write_text(yaml.safe_dump({"params": P, "rows": rows, "polish": {"budget": 6}}))
     with pytest.raises(ClothStageError, match="cmaes.yaml: field 'trial_simulations' is missing"):
         stage.run(_cfg(tmp_path, lists))
+
+
+def test_a_lead_within_the_copies_spread_is_undecided():
+    """``_lead`` (compare_cloth): the best method over the moved copies is decided only when it beats
+    every other method copy by copy beyond the paired t cut-off; overlapping copies, or a failed
+    copy, leave it undecided."""
+    clear = stage._lead([[10.0, 10.1, 9.9, 10.05], [12.0, 12.1, 11.9, 12.0], [15.0, 15.2, 14.9, 15.1]])
+    assert clear["best"] == "anneal" and clear["decided"] and clear["rival"] == "joint"
+    mixed = stage._lead([[10.0, 14.0, 9.0, 13.0], [11.0, 10.0, 12.0, 12.0], [20.0, 21.0, 19.0, 20.0]])
+    assert mixed["best"] == "joint" and not mixed["decided"]  # means 11.5 vs 11.25, copies cross
+    # beats one method clearly but not the other: undecided (the lead must hold against every method)
+    half = stage._lead([[10.0, 10.1, 9.9, 10.0], [10.5, 9.0, 11.0, 10.2], [15.0, 15.1, 14.9, 15.0]])
+    assert half["best"] == "anneal" and not half["decided"]
+    failed = stage._lead([[10.0, 10.1], [], [15.0, 15.1]])
+    assert failed["best"] is None and not failed["decided"] and failed["mean_error"]["joint"] is None
