@@ -360,6 +360,20 @@ def diagonal_wins(E: np.ndarray) -> list[int]:
     return [int(E[j, j] < FAILED_SCORE and int(np.argmin(E[:, j])) == j) for j in range(n)]
 
 
+def chaos_copies(node, where: str) -> tuple[int, float]:
+    """``(chaos_draws, chaos_sigma)`` of a stage's config ``node`` (``where``: its key, e.g.
+    ``cloth.validate``), checked: 0 copies or at least 2 (a paired test needs two), and a log-scale
+    spread in (0, 1] as the objective's ``cloth.model.chaos_sigma``."""
+    draws, sigma = node.chaos_draws, node.chaos_sigma
+    if isinstance(draws, bool) or int(draws) != draws or draws < 0 or draws == 1:
+        raise ClothStageError(f"{where}.chaos_draws = {draws}: expected 0 (no copies) or a whole number >= 2 "
+                              "(a paired test needs two copies)")
+    if not (np.isfinite(sigma) and 0 < sigma <= 1):
+        raise ClothStageError(f"{where}.chaos_sigma = {sigma}: expected a log-scale spread in (0, 1] "
+                              "(1e-4 moves the parameters by 0.01 %)")
+    return int(draws), float(sigma)
+
+
 def paired_margins(E: np.ndarray, members: list, z: float | None = None) -> dict:
     """How firmly each column's verdict (does the diagonal win?) is decided by an ensemble of starts.
 

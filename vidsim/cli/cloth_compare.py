@@ -39,6 +39,7 @@ from omegaconf import DictConfig, OmegaConf
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
     ClothStageError,
+    chaos_copies,
     load_trial,
     make_objective,
     paired_margins,
@@ -117,13 +118,7 @@ def run(cfg: DictConfig) -> None:
     if len(cc.anneal_traces) != nt * n or len(cc.cmaes_traces) != nt * n or len(cc.joint_traces) != n or nt < 1:
         raise ClothStageError("cloth.compare: anneal_traces and cmaes_traces need the same number of trials per fabric, "
                               "joint_traces one per fabric")
-    draws, sigma = cc.chaos_draws, cc.chaos_sigma
-    if isinstance(draws, bool) or int(draws) != draws or draws < 0 or draws == 1:
-        raise ClothStageError(f"cloth.compare.chaos_draws = {draws}: expected 0 (no copies) or a whole number >= 2 "
-                              "(a paired test needs two copies)")
-    if not (np.isfinite(sigma) and 0 < sigma <= 1):
-        raise ClothStageError(f"cloth.compare.chaos_sigma = {sigma}: expected a log-scale spread in (0, 1] "
-                              "(1e-4 moves the parameters by 0.01 %)")
+    draws, sigma = chaos_copies(cc, "cloth.compare")
     for p in lists["joint"]:
         if not Path(p).is_file():
             raise ClothStageError(f"{p}: fit.yaml is missing")

@@ -37,6 +37,7 @@ from omegaconf import DictConfig, OmegaConf
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
     ClothStageError,
+    chaos_copies,
     diagonal_wins,
     fabric_matrix,
     fabric_sets,
@@ -58,13 +59,7 @@ def run(cfg: DictConfig) -> None:
         if not isinstance(s_.get("trials"), list):
             raise ClothStageError(f"{f}: field 'trials' is missing (not a select_cloth output)")
     vc = cfg.cloth.validate
-    draws, sigma = vc.chaos_draws, vc.chaos_sigma
-    if isinstance(draws, bool) or int(draws) != draws or draws < 0 or draws == 1:
-        raise ClothStageError(f"cloth.validate.chaos_draws = {draws}: expected 0 (no copies) or a whole number >= 2 "
-                              "(a paired test needs two copies)")
-    if not (np.isfinite(sigma) and 0 < sigma <= 1):
-        raise ClothStageError(f"cloth.validate.chaos_sigma = {sigma}: expected a log-scale spread in (0, 1] "
-                              "(1e-4 moves the parameters by 0.01 %)")
+    draws, sigma = chaos_copies(vc, "cloth.validate")
     ckpt = out / ".validate_cloth.checkpoint"  # the cells' logs; removed once validation.yaml is written
     if ckpt.is_dir():
         print(f"validate_cloth: resuming from {ckpt} (cells already scored are replayed, not simulated)", flush=True)
