@@ -163,8 +163,13 @@ def test_twin_select_profile_score_and_method_comparison(study):
          f"cloth.compare.heldout=[{fp['robot']}]", f"cloth.compare.anneal=[{params}]",
          f"cloth.compare.cmaes=[{res / 'cloth' / 'select_cmaes' / 'twin' / 'params.yaml'}]",
          f"cloth.compare.joint=[{joint / 'fit.yaml'}]", f"cloth.compare.anneal_traces=[{tr('fit')}]",
-         f"cloth.compare.cmaes_traces=[{tr('fit_cmaes')}]", f"cloth.compare.joint_traces=[{joint / 'trace.csv'}]")
+         f"cloth.compare.cmaes_traces=[{tr('fit_cmaes')}]", f"cloth.compare.joint_traces=[{joint / 'trace.csv'}]",
+         "cloth.compare.chaos_draws=2")
     cdoc = yaml.safe_load((cmp_ / "compare.yaml").read_text())
+    # the best method over 2 moved copies of each estimate (the lead's test itself: tests/unit/clothfit)
+    lead = cdoc["copies"]["leads"]["twin"]
+    assert cdoc["copies"]["draws"] == 2 and lead["copies"] == 2 and lead["best"] in cdoc["methods"], lead
+    assert lead["mean_error"][lead["best"]] == min(lead["mean_error"].values())
     # budgets in true trial simulations: the fits' simulated trace rows (2 trials x (grid 3 + 4) rows
     # each, the cache's answers not counted) plus, per trial, the selection's candidates on both trials
     def _sims(path):
@@ -261,8 +266,12 @@ def test_validation_matrix_prefers_each_twins_own_parameters(study):
     out = res / "cloth" / "validate"
     foot = f"[{res / 'footage' / 'cloth_twin_robot'},{res / 'footage' / 'cloth_stiff_robot'}]"
     _run("vidsim.cli.cloth_validate", f"paths.results={res}", f"paths.out={out}", *MODEL,
-         "cloth.validate.fabrics=[soft,stiff]", f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage={foot}")
+         "cloth.validate.fabrics=[soft,stiff]", f"cloth.validate.params=[{','.join(files)}]", f"cloth.validate.footage={foot}",
+         "cloth.validate.chaos_draws=2")
     doc = yaml.safe_load((out / "validation.yaml").read_text())
+    # every column judged over 2 moved copies of each set (the verdicts' logic: tests/unit/clothfit)
+    assert {v["copies"] for v in doc["verdicts"].values()} == {2} and sum(doc["decided"].values()) == 2, doc["verdicts"]
+    assert (out / "matrix_copies.csv").is_file()
     E = np.array(doc["matrix"])
     rows = [r.split(",") for r in (out / "matrix.csv").read_text().splitlines()[1:]]
     assert np.allclose(np.array([[float(x) for x in r[1:]] for r in rows]), E, rtol=1e-4)
