@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -106,3 +107,29 @@ def test_cli_missing_calibration_names_the_file(tmp_path):
     assert str(missing) in r.stderr and "missing" in r.stderr
     assert "Traceback" not in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_the_full_workflow_config_sets_every_key_the_quick_one_sets():
+    """`--configfile workflow/config/full.yaml` is merged over quick.yaml (the Snakefile's configfile),
+    nested mappings key by key: a key only quick.yaml sets would keep its quick value in the
+    seed-scale study. Until 6 Dec 2026 quick's `overrides.select_cloth` (a joint polish after the
+    selection) leaked into the full study that way."""
+    import yaml
+
+    from vidsim.config import CONF_DIR
+
+    wf = Path(CONF_DIR).parent / "workflow" / "config"
+    quick, full = (yaml.safe_load((wf / f"{n}.yaml").read_text()) for n in ("quick", "full"))
+
+    def missing(a: dict, b: dict, path: str = "") -> list[str]:
+        out = []
+        for k, v in a.items():
+            p = f"{path}.{k}" if path else str(k)
+            if not isinstance(b, dict) or k not in b:
+                out.append(p)
+            elif isinstance(v, dict):
+                out += missing(v, b[k], p)
+        return out
+
+    assert missing(quick, full) == []
+    assert full["overrides"]["select_cloth"] == ""  # the seed's selection alone at full scale
