@@ -270,7 +270,13 @@ def test_validation_matrix_prefers_each_twins_own_parameters(study):
          "cloth.validate.chaos_draws=2")
     doc = yaml.safe_load((out / "validation.yaml").read_text())
     # every column judged over 2 moved copies of each set (the verdicts' logic: tests/unit/clothfit)
-    assert {v["copies"] for v in doc["verdicts"].values()} == {2} and sum(doc["decided"].values()) == 2, doc["verdicts"]
+    v = doc["verdicts"]
+    assert {x["copies"] for x in v.values()} == {2} and all(x["failed"] == [] for x in v.values()), v
+    assert doc["decided"] == {k: sum(x["verdict"] == k for x in v.values()) for k in ("won", "lost", "undecided")}, doc
+    Ec = np.array(doc["copies"]["matrix_mean"])
+    for j, f in enumerate(("soft", "stiff")):
+        # a win needs the own set's copies best on the mean, a loss another set's (sign and pairing of the test)
+        assert v[f]["verdict"] != ("lost" if int(np.argmin(Ec[:, j])) == j else "won"), (f, v[f], Ec)
     assert (out / "matrix_copies.csv").is_file()
     E = np.array(doc["matrix"])
     rows = [r.split(",") for r in (out / "matrix.csv").read_text().splitlines()[1:]]

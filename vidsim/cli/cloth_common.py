@@ -378,21 +378,31 @@ def paired_margins(E: np.ndarray, members: list, z: float | None = None) -> dict
     """How firmly each column's verdict (does the diagonal win?) is decided by an ensemble of starts.
 
     The starts are the same for every row (a skirt's fold-seeded starts depend on the skirt model and
-    seed, not on the parameters), so the differences ``d_k = e_diag,k - e_other,k`` are paired. A win
-    is *decided* when the diagonal is significantly better than *every* other row (the mean of each
-    row's ``d`` beyond ``z`` standard errors below zero), a loss when the best other row (the lowest
-    error) is significantly better than the diagonal; with fewer than two starts (or a failed cell)
-    the column is undecided. ``z``: the cut-off; None (default) Student's t at 95 % two-sided with
-    n - 1 degrees of freedom (2.36 at 8 starts; a fixed 2 gave a 9 % false call rate there). Before
-    5 Dec 2026 a win was tested against the runner-up alone, so a row that beat the diagonal at half
-    the starts but lost on the mean could not stop a "decided" win (review).
+    seed, not on the parameters; a swatch's moved copies are the objective's fixed draws), so the
+    differences ``d_k = e_diag,k - e_other,k`` are paired. A win is *decided* when the diagonal is
+    significantly better than *every* other row (each row's mean ``d`` beyond ``z`` standard errors
+    below zero: an intersection of one-sided tests, so no correction for their number); a loss when
+    *some* other row is significantly better than the diagonal (mean ``d`` beyond the cut above zero,
+    the cut Bonferroni-corrected for the number of rows tested, since any one of them would do). With
+    fewer than two starts the column is undecided. A row that failed to simulate (``FAILED_SCORE``)
+    cannot match the footage: it is left out of the tests (beaten); a column whose own set failed is
+    lost. ``z``: the cut-off of both tests; None (default) Student's t with n - 1 degrees of freedom
+    at 2.5 % one-sided (2.36 at 8 starts; a fixed 2 gave a 9 % false call rate there), divided by
+    the number of rows for a loss. Before 5 Dec 2026 a win was tested against the runner-up alone, and
+    until 6 Dec 2026 (session 44) a loss against the row of least mean error alone, so a row that beat
+    the diagonal at every start could leave the column undecided, and picking the rival after the
+    fact on the same starts called 6 % of equal columns lost (reviews).
 
     Returns:
-        ``{column index: {"rival": best other row, "margin": mean d against it (negative: the
-        diagonal is better), "se": its standard error, "decided": bool, "members": n, "cut": the
-        cut-off used}}``.
+        ``{column index: {"verdict": "won" | "lost" | "undecided", "decided": bool, "rival": the row a
+        loss is decided against, else the best other row (least error), "margin": mean d against it
+        (negative: the diagonal is better), "se": its standard error, "members": n, "cut": the win's
+        cut-off, "cut_lost": the loss's, "failed": rows that failed to simulate (the own row
+        included, when it did)}}``.
     """
     from scipy.stats import t as student_t
+
+    from vidsim.optim import FAILED_SCORE
 
     out = {}
     n_rows = E.shape[0]
@@ -400,24 +410,45 @@ def paired_margins(E: np.ndarray, members: list, z: float | None = None) -> dict
         others = [i for i in range(n_rows) if i != j]
         if not others or j >= n_rows:
             continue
-        rival = min(others, key=lambda i: E[i, j])
+        failed = [i for i in range(n_rows) if not (np.isfinite(E[i, j]) and E[i, j] < FAILED_SCORE)]
+        alive = [i for i in others if i not in failed]
+        rival = min(alive, key=lambda i: E[i, j]) if alive else others[0]
+        if j in failed:  # its own set could not be simulated on its own footage: lost
+            out[j] = {"verdict": "lost", "decided": True, "rival": int(rival), "margin": float("nan"),
+                      "se": float("nan"), "members": 0, "cut": float("nan"), "cut_lost": float("nan"),
+                      "failed": failed}
+            continue
         a = np.asarray(members[j][j], float)
-        rows = {i: np.asarray(members[i][j], float) for i in others}
+        rows = {i: np.asarray(members[i][j], float) for i in alive}
         n = int(min([a.size] + [b.size for b in rows.values()]))
         ok = n >= 2 and all(b.size == a.size for b in rows.values()) and np.all(np.isfinite(a)) and all(
             np.all(np.isfinite(b)) for b in rows.values())
-        cut = float(z) if z is not None else (float(student_t.ppf(0.975, n - 1)) if n >= 2 else float("nan"))
-        if ok:
+        k = max(1, len(rows))
+        if z is not None:
+            cut = cut_lost = float(z)
+        elif n >= 2:
+            cut = float(student_t.ppf(0.975, n - 1))
+            cut_lost = float(student_t.ppf(1 - 0.025 / k, n - 1))
+        else:
+            cut = cut_lost = float("nan")
+        verdict = "undecided"
+        if ok and not rows:  # every other set failed: the own set is the only one that matches
+            margin, se, verdict = float("nan"), float("nan"), "won"
+        elif ok:
             stats = {}
             for i, b in rows.items():
                 d = a - b
                 stats[i] = (float(d.mean()), float(d.std(ddof=1) / np.sqrt(n)))
+            beaten_by = [i for i, (m, e) in stats.items() if m - cut_lost * e > 0]
+            if beaten_by:
+                rival = max(beaten_by, key=lambda i: stats[i][0])
+                verdict = "lost"
+            elif all(m + cut * e < 0 for m, e in stats.values()):
+                verdict = "won"
             margin, se = stats[rival]
-            won = all(m + cut * e < 0 for m, e in stats.values())
-            lost = margin - cut * se > 0
-            decided = bool(won or lost)
         else:
-            margin = float(E[j, j] - E[rival, j]) if np.all(np.isfinite([E[j, j], E[rival, j]])) else float("nan")
-            se, decided = float("nan"), False
-        out[j] = {"rival": int(rival), "margin": margin, "se": se, "decided": decided, "members": n, "cut": cut}
+            margin = float(E[j, j] - E[rival, j]) if alive else float("nan")
+            se = float("nan")
+        out[j] = {"verdict": verdict, "decided": verdict != "undecided", "rival": int(rival), "margin": margin,
+                  "se": se, "members": n, "cut": cut, "cut_lost": cut_lost, "failed": failed}
     return out

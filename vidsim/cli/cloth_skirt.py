@@ -13,9 +13,10 @@ over ``cloth.skirt.model_fold_members`` fold-seeded starts (the footage's fold p
 known input; the videos show the first member):
 ``matrix.csv`` / ``matrix.png`` (rows: parameters, columns: skirt footage; the diagonal should win
 each column), ``skirt.yaml`` (matrix, wins, the model skirt's settings, and per footage a
-``verdicts`` entry: its own set against the best other set, start by start over the fold-seeded
-starts, ``won``/``lost`` when the mean paired difference is beyond 2 standard errors, else
-``undecided``: the unknown initial fold pattern alone could turn the column), per fabric ``side_by_side_<fabric>.mp4`` (footage |
+``verdicts`` entry: its own set against every other set, start by start over the fold-seeded
+starts (:func:`vidsim.cli.cloth_common.paired_margins`): ``won`` when it is significantly better than
+every other set, ``lost`` when some other set is significantly better than it, else ``undecided``: the
+unknown initial fold pattern alone could turn the column), per fabric ``side_by_side_<fabric>.mp4`` (footage |
 simulation with its own parameters), ``side_by_side.png`` (stills) and ``skirt.rrd``.
 
 Checkpoint: every matrix cell's score and per-start errors are logged as they finish to
@@ -63,9 +64,9 @@ def run(cfg: DictConfig) -> None:
     n = len(fabrics)
     wins = diagonal_wins(E)
     members = int(sk.model_fold_members) if float(sk.model_fold_amplitude) > 0 else 0
-    verdicts = _verdicts(E, cells, fabrics, wins)
+    verdicts = _verdicts(E, cells, fabrics)
     tally = {k: sum(v["verdict"] == k for v in verdicts.values()) for k in ("won", "lost", "undecided")}
-    note = (f"decided by the {members} fold-seeded starts (paired t, 95 %, against every other set): won {tally['won']}, lost {tally['lost']}, "
+    note = (f"decided by the {members} fold-seeded starts (paired t, 2.5 % one-sided; a loss against any other set, Bonferroni): won {tally['won']}, lost {tally['lost']}, "
             f"undecided {tally['undecided']}") if members >= 2 else ""
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
     matrix_figure(E, fabrics, "skirt footage (skipping body)", out / "matrix.png", note)
@@ -104,14 +105,14 @@ def run(cfg: DictConfig) -> None:
     print(f"skirt_cloth: diagonal wins {sum(wins)}/{n}" + (f"; {note}" if note else ""), flush=True)
 
 
-def _verdicts(E: np.ndarray, cells: list, fabrics: list[str], wins: list[int]) -> dict:
+def _verdicts(E: np.ndarray, cells: list, fabrics: list[str]) -> dict:
     """Per skirt footage: does its own fabric's set win, against which rival, and is that decided by
     the fold-seeded starts (:func:`vidsim.cli.cloth_common.paired_margins`)?"""
     out = {}
     for j, m in paired_margins(E, cells).items():
-        verdict = ("won" if wins[j] else "lost") if m["decided"] else "undecided"
-        out[fabrics[j]] = {"verdict": verdict, "rival": fabrics[m["rival"]], "margin": m["margin"], "se": m["se"],
-                           "starts": m["members"], "cut": m["cut"]}
+        out[fabrics[j]] = {"verdict": m["verdict"], "rival": fabrics[m["rival"]], "margin": m["margin"], "se": m["se"],
+                           "starts": m["members"], "cut": m["cut"], "cut_lost": m["cut_lost"],
+                           "failed": [fabrics[i] for i in m["failed"]]}
     return out
 
 

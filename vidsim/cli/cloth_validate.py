@@ -12,7 +12,9 @@ scored as ``cloth.validate.chaos_draws`` moved copies (each of the nine paramete
 fixed draws of exp(N(0, ``chaos_sigma``)) of ``cloth.model.chaos_members``, the same draws for every
 set), and per column the own set's copies are compared with every other set's, copy by copy
 (:func:`vidsim.cli.cloth_common.paired_margins`, the skirt matrix's test): ``won`` (significantly
-better than every other set), ``lost`` (the best other set significantly better) or ``undecided``.
+better than every other set), ``lost`` (some other set significantly better, the cut corrected for the
+number of sets; or its own set failed to simulate) or ``undecided``; a set that fails is left out
+of a column's tests (``failed`` names it).
 ``matrix.csv`` and ``diagonal_wins`` stay the sets' own (unmoved) errors, the seed's Figure 8
 (with ``cloth.model.chaos_members`` > 0, the fits' own chaos-averaged loss, that average);
 ``matrix_copies.csv`` holds the copies' means, on which the verdicts rest. What "decided" covers:
@@ -73,12 +75,14 @@ def run(cfg: DictConfig) -> None:
         Ec, _ = fabric_matrix(footage, sets, ccfg, fabrics, f"validate_cloth copies ({int(draws)} per set)",
                               members=cells, checkpoint=ckpt / "copies")
         for j, m in paired_margins(Ec, cells).items():
-            verdict = ("won" if m["margin"] < 0 else "lost") if m["decided"] else "undecided"
-            verdicts[fabrics[j]] = {"verdict": verdict, "rival": fabrics[m["rival"]], "margin": m["margin"],
-                                    "se": m["se"], "copies": m["members"], "cut": m["cut"]}
+            verdicts[fabrics[j]] = {"verdict": m["verdict"], "rival": fabrics[m["rival"]], "margin": m["margin"],
+                                    "se": m["se"], "copies": m["members"], "cut": m["cut"], "cut_lost": m["cut_lost"],
+                                    "failed": [fabrics[i] for i in m["failed"]]}
         tally = {k: sum(v["verdict"] == k for v in verdicts.values()) for k in ("won", "lost", "undecided")}
         write_text(out / "matrix_copies.csv", matrix_csv(Ec, fabrics))
-    note = (f"over {int(draws)} copies moved by {sigma:g} (paired t, 95 %, against every other set): won {tally['won']}, "
+    else:  # no copies: a previous run's copies matrix in this folder no longer belongs to these verdicts
+        (out / "matrix_copies.csv").unlink(missing_ok=True)
+    note = (f"over {int(draws)} copies moved by {sigma:g} (paired t, 2.5 % one-sided; a loss against any other set, Bonferroni): won {tally['won']}, "
             f"lost {tally['lost']}, undecided {tally['undecided']}") if tally else ""
     write_text(out / "matrix.csv", matrix_csv(E, fabrics))
     matrix_figure(E, fabrics, "held-out footage (robot motion)", out / "matrix.png", note)

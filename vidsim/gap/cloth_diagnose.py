@@ -284,8 +284,10 @@ class ClothDiagnoseConfig:
         if isinstance(self.chaos_draws, bool) or int(self.chaos_draws) != self.chaos_draws or self.chaos_draws < 0:
             raise ClothGapError(f"gap.cloth.diagnose.chaos_draws must be a whole number >= 0 (0: off), got "
                                 f"{self.chaos_draws!r}")
-        if not (np.isfinite(self.chaos_sigma) and self.chaos_sigma >= 0):
-            raise ClothGapError(f"gap.cloth.diagnose.chaos_sigma must be a relative scale >= 0, got {self.chaos_sigma!r}")
+        if not (np.isfinite(self.chaos_sigma) and 0 < self.chaos_sigma <= 1):
+            # 0 would report copies identical to the fit, "no chaos", whatever the model does
+            raise ClothGapError(f"gap.cloth.diagnose.chaos_sigma must be a log-scale spread in (0, 1] "
+                                f"(1e-4 moves the parameters by 0.01 %), got {self.chaos_sigma!r}")
         for k in ("min_closure", "min_excess"):
             v = float(getattr(self, k))
             if not np.isfinite(v):
@@ -1107,13 +1109,20 @@ def combine_passes(passes: dict[str, ClothDiagnosis]) -> ClothDiagnosis:
                    "noise_floor_heldout_px": float(p.floor_test.mean()), "gap_present": bool(p.extra.get("gap_present")),
                    "heldout_excess_px": p.extra.get("heldout_excess_px"), "candidates": sorted(p.screen),
                    "base_params": p.extra.get("base_params"), "seconds": p.seconds,
-                   "gap_per_frame_px": p.gap_per_frame.tolist(), "noise_floor_per_frame_px": p.floor_per_frame.tolist()}
+                   "gap_per_frame_px": p.gap_per_frame.tolist(), "noise_floor_per_frame_px": p.floor_per_frame.tolist(),
+                   "model_chaos": p.where.get("model_chaos")}
                for r, p in passes.items()}
+    # the where-analysis is the outline pass's, but the model's chaos is reported beside the headline
+    # gap and floor, which are the primary pass's: the same pixels (until session 44 the outline's
+    # chaos was printed beside the grips pass's gap when the grips pass named an effect; review)
+    where = dict(outline.where)
+    if primary.where.get("model_chaos") is not None:
+        where["model_chaos"] = primary.where["model_chaos"]
     extra = {**primary.extra, "gap_present": bool(gap_any), "region": "split",
              "primary_region": next(r for r in order if passes[r] is primary), "named_refit_keys": keys,
              "heldout_excess_px": primary.extra.get("heldout_excess_px"), "passes": summary}
     return ClothDiagnosis(named, verdict, primary.frames, primary.train, primary.test, primary.gap_per_frame,
-                          primary.floor_per_frame, primary.screen, refits, outline.where, outline.signed_heatmap,
+                          primary.floor_per_frame, primary.screen, refits, where, outline.signed_heatmap,
                           primary.theta_base, float(sum(p.seconds for p in passes.values())),
                           int(sum(p.n_sims for p in passes.values())), extra)
 

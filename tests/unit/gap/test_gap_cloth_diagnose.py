@@ -350,6 +350,7 @@ def _fake_diagnosis(named, region_gap, region, refits, gap_present=True):
 def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_its_region(tmp_path):
     grips = _fake_diagnosis(["time_offset"], 50.0, "grips", {"time_offset": {"params": {}}, "lens_k1": {"params": {}}})
     outline = _fake_diagnosis(["wind"], 300.0, "outline", {"wind": {"params": {}}, "damping": {"params": {}}})
+    grips.where["model_chaos"], outline.where["model_chaos"] = {"heldout_px": 2.0}, {"heldout_px": 40.0}
     d = cloth_diagnose.combine_passes({"grips": grips, "outline": outline})
     assert d.named == ["time_offset", "wind"]
     assert d.verdict == "explained by time_offset (grips), wind (outline)"
@@ -358,7 +359,9 @@ def test_split_diagnosis_lists_the_grips_names_first_and_keeps_each_refit_under_
     assert d.refit_key("air_drag") is None
     # gap and floor are those of the pass that named first; "where" is the outline's
     assert d.gap_per_frame[0] == 50.0 and d.extra["primary_region"] == "grips"
-    assert d.where == {"where": "outline"} and set(d.extra["passes"]) == {"grips", "outline"}
+    # ... except the model's own chaos, reported beside the headline gap: the primary pass's pixels
+    assert d.where == {"where": "outline", "model_chaos": {"heldout_px": 2.0}} and set(d.extra["passes"]) == {"grips", "outline"}
+    assert [d.extra["passes"][r]["model_chaos"]["heldout_px"] for r in ("grips", "outline")] == [2.0, 40.0]
     # the screen is the primary pass's; each pass keeps its own (both screen the grip candidates)
     assert d.screen is grips.screen
     assert d.extra["passes"]["outline"]["screen"] is outline.screen
@@ -536,3 +539,6 @@ def test_model_chaos_is_zero_without_a_move_and_grows_over_the_clip(null_case):
     assert cloth_diagnose.model_chaos(model, th, problem, est, T, np.arange(T), ClothDiagnoseConfig(chaos_draws=0)) == {}
     with pytest.raises(cloth_diagnose.ClothGapError, match="chaos_draws"):
         ClothDiagnoseConfig(chaos_draws=-1).validate()
+    for bad in (0.0, 2.0, float("nan")):  # 0 would report "no chaos" whatever the model does
+        with pytest.raises(cloth_diagnose.ClothGapError, match="chaos_sigma"):
+            ClothDiagnoseConfig(chaos_sigma=bad).validate()
