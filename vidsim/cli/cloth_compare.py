@@ -26,11 +26,18 @@ every method); per fabric the method of least mean error over the copies is ``de
 copies beat every other method's copy by copy (:func:`vidsim.cli.cloth_common.paired_margins`,
 paired t at 95 %), else the lead is within the model's chaos at these estimates. The test covers
 that chaos only, not the fits' spread over annealing seeds.
+
+Checkpoint: every held-out simulation (the estimates and their moved copies) is logged as it
+finishes to ``.compare_cloth.checkpoint/fabric<i>.jsonl`` (``copies/`` for the copies) in the output
+folder (:class:`vidsim.cli.cloth_common.LoggedScores`, keyed by the objective's fingerprint); a killed
+run, run again, replays what was logged and writes the uninterrupted run's outputs bit for bit. The
+folder is removed once ``compare.yaml`` is written.
 """
 
 from __future__ import annotations
 
 import csv
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +46,7 @@ from omegaconf import DictConfig, OmegaConf
 from vidsim.cli._app import stage_app
 from vidsim.cli.cloth_common import (
     ClothStageError,
+    LoggedScores,
     chaos_copies,
     load_trial,
     make_objective,
@@ -146,18 +154,27 @@ def run(cfg: DictConfig) -> None:
     prog = Progress(E.size * (2 if draws else 1), "compare_cloth held-out", enabled=cfg.log.progress)
     ccfg = OmegaConf.merge(cfg, {"cloth": {"model": {"chaos_members": int(draws), "chaos_sigma": float(sigma)}}}) if draws else None
     copies = [[[] for _ in METHODS] for _ in range(n)]
+    ckpt = out / ".compare_cloth.checkpoint"  # the held-out simulations' logs; removed once compare.yaml is written
+    if ckpt.is_dir():
+        print(f"compare_cloth: resuming from {ckpt} (simulations already logged are replayed)", flush=True)
     for i, f in enumerate(lists["heldout"]):
         tr = load_trial(f, cfg)
-        obj = make_objective([tr], cfg)
-        for m, meth in enumerate(METHODS):
-            E[i, m] = obj.evaluate_params(sets[meth][i]).score
-            prog.update(note=f"{fabrics[i]} {meth}")
-        if ccfg is not None:
-            cobj = make_objective([tr], ccfg)
+        obj = LoggedScores(make_objective([tr], cfg), ckpt / f"fabric{i}.jsonl")
+        try:
             for m, meth in enumerate(METHODS):
-                r = cobj.evaluate_params(sets[meth][i])
-                copies[i][m] = list(r.members[0]) if r.ok and r.members else []
-                prog.update(note=f"{fabrics[i]} {meth}, {int(draws)} moved copies")
+                E[i, m] = obj.evaluate_params(sets[meth][i]).score
+                prog.update(note=f"{fabrics[i]} {meth}")
+        finally:
+            obj.close()
+        if ccfg is not None:
+            cobj = LoggedScores(make_objective([tr], ccfg), ckpt / "copies" / f"fabric{i}.jsonl")
+            try:
+                for m, meth in enumerate(METHODS):
+                    r = cobj.evaluate_params(sets[meth][i])
+                    copies[i][m] = list(r.members[0]) if r.ok and r.members else []
+                    prog.update(note=f"{fabrics[i]} {meth}, {int(draws)} moved copies")
+            finally:
+                cobj.close()
     best = [METHODS[int(np.argmin(E[i]))] for i in range(n)]
     leads = {fab: _lead(copies[i]) for i, fab in enumerate(fabrics)} if draws else {}
     _figures(fabrics, E, traces, nt, out)  # the figures first, the tables last (a kill leaves no new table beside old figures)
@@ -172,6 +189,7 @@ def run(cfg: DictConfig) -> None:
         "best_on_heldout": dict(zip(fabrics, best)),
         "wins": {m: int(sum(b == m for b in best)) for m in METHODS},
         "copies": {"draws": int(draws), "sigma": float(sigma), "leads": leads}})
+    shutil.rmtree(ckpt, ignore_errors=True)
     print("compare_cloth: best on held-out " + ", ".join(f"{f}: {b}" for f, b in zip(fabrics, best))
           + ("; over the moved copies " + ", ".join(f"{f}: {v['best']} ({'decided' if v['decided'] else 'undecided'})"
                                                     for f, v in leads.items()) if leads else ""), flush=True)

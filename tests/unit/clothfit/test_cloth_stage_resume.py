@@ -1,4 +1,4 @@
-"""score_cloth_twin, skirt_cloth and validate_cloth resume within a run: every simulation is logged as it finishes
+"""score_cloth_twin, skirt_cloth, validate_cloth and compare_cloth resume within a run: every simulation is logged as it finishes
 (:class:`vidsim.cli.cloth_common.LoggedScores`, the fits' evaluation-log mechanism); a run killed
 partway and run again writes the uninterrupted run's outputs bit for bit and simulates only what
 was not logged; a changed setting does not replay the old scores.
@@ -18,6 +18,7 @@ import yaml
 from omegaconf import OmegaConf
 
 import vidsim.cli.cloth_common as common
+import vidsim.cli.cloth_compare as compare_stage
 import vidsim.cli.cloth_skirt as skirt_stage
 import vidsim.cli.cloth_twin_score as twin_stage
 import vidsim.cli.cloth_validate as validate_stage
@@ -76,6 +77,7 @@ def sims(monkeypatch, footage):
 
     monkeypatch.setattr(common, "load_trial", load_trial)
     monkeypatch.setattr(twin_stage, "load_trial", load_trial)
+    monkeypatch.setattr(compare_stage, "load_trial", load_trial)
     monkeypatch.setattr(ClothObjective, "evaluate_params", counted)
     monkeypatch.setattr(skirt_stage, "_tris", lambda tr, cfg: np.zeros((0, 3), int))
     return state
@@ -226,3 +228,34 @@ def test_validation_verdicts_follow_the_copies_paired_differences(tmp_path, sims
         with pytest.raises(common.ClothStageError, match=msg):
             validate_stage.run(_cfg(*_validation_args(tmp_path, bad), f"paths.out={tmp_path / 'v1'}"))
     assert sims["n"] == 0
+
+
+def test_method_comparison_resumes_bit_identical(tmp_path, sims):
+    """compare_cloth logs each held-out simulation (the three estimates, then their moved copies): a
+    run killed among the copies simulates only what was not logged and writes the same tables."""
+    sets = {"anneal": dataclasses.replace(STIFF, stretch=2700.0), "cmaes": SOFT, "joint": STIFF}
+    files = {}
+    for m, p in sets.items():
+        files[m] = tmp_path / f"{m}.yaml"
+        files[m].write_text(yaml.safe_dump({"params": params_dict(p), "rows": [],
+                                            "trial_simulations": {"selection": 4, "polish": 0}}))
+    trace = tmp_path / "trace.csv"
+    trace.write_text("evaluation,phase,energy,best_so_far,simulated\n0,grid,2.0,2.0,1\n1,anneal,1.0,1.0,1\n")
+    args = [f"paths.results={tmp_path}", "cloth.compare.fabrics=[stiff]", f"cloth.compare.heldout=[{tmp_path / 'stiff'}]",
+            *[f"cloth.compare.{m}=[{files[m]}]" for m in sets], f"cloth.compare.anneal_traces=[{trace},{trace}]",
+            f"cloth.compare.cmaes_traces=[{trace},{trace}]", f"cloth.compare.joint_traces=[{trace}]",
+            "cloth.compare.chaos_draws=2"]
+    whole = tmp_path / "whole"
+    compare_stage.run(_cfg(*args, f"paths.out={whole}"))
+    assert sims["n"] == 6 and not (whole / ".compare_cloth.checkpoint").exists()  # 3 estimates, then their copies
+    doc = yaml.safe_load((whole / "compare.yaml").read_text())
+    err = dict(zip(doc["methods"], doc["heldout_error"][0]))
+    assert err["cmaes"] > 1.5 * max(err["anneal"], err["joint"]), err  # the soft twin's set, far off the stiff footage
+    out = tmp_path / "resumed"
+    _run_killed(compare_stage.run, _cfg(*args, f"paths.out={out}"), sims, at=4)  # killed at the second copy
+    assert len((out / ".compare_cloth.checkpoint" / "copies" / "fabric0.jsonl").read_text().splitlines()) == 1 + 1
+    compare_stage.run(_cfg(*args, f"paths.out={out}"))
+    assert sims["n"] == 2  # the two copies not logged
+    for f in ("compare.yaml", "compare.csv"):
+        assert (out / f).read_bytes() == (whole / f).read_bytes()
+    assert not (out / ".compare_cloth.checkpoint").exists()

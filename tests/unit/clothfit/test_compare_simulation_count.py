@@ -66,8 +66,8 @@ def test_compare_counts_true_simulations_and_the_selections(tmp_path, monkeypatc
     monkeypatch.setattr(stage, "load_trial", lambda f, cfg: None)
     def objective(trials, cfg):  # a set's error is its stretch; its moved copies' errors spread by 1 %
         k = int(cfg.cloth.model.chaos_members)
-        return SimpleNamespace(evaluate_params=lambda p: SimpleNamespace(
-            score=float(p.stretch), ok=True,
+        return SimpleNamespace(space=None, fingerprint=lambda: f"fake objective, {k} copies", evaluate_params=lambda p, keep=False: SimpleNamespace(
+            score=float(p.stretch), ok=True, failure=None,
             members=[[float(p.stretch) * (1 + 0.01 * np.sin(j + 1)) for j in range(k)] if k else [float(p.stretch)]]))
 
     monkeypatch.setattr(stage, "make_objective", objective)
